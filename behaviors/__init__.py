@@ -1,0 +1,1 @@
+"""How skills are composed: the execution engine (blackboard, trees, machines, trace)."""

@@ -1,0 +1,92 @@
+"""Decorators that need the mission clock or blackboard conditions.
+
+py_trees' own Timeout reads the wall clock, and its EternalGuard takes Python callables; these
+take the mission clock and a condition from ``skills.expression`` instead, and always leave a
+reason for the trace when they fail.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+import py_trees
+from py_trees.common import Status
+
+from behaviors.blackboard import BlackboardError
+from skills.expression import EvaluationError, Expression
+
+if TYPE_CHECKING:
+    from behaviors.engine import Engine
+
+
+class ClockTimeout(py_trees.decorators.Decorator):
+    """Fail, halting the child, when it has run for ``duration`` seconds of mission time."""
+
+    def __init__(self, name: str, child: py_trees.behaviour.Behaviour, duration: float, engine: Engine) -> None:
+        super().__init__(name=name, child=child)
+        self.duration = duration
+        self.engine = engine
+        self._deadline = 0.0
+
+    def initialise(self) -> None:
+        self._deadline = self.engine.clock.now() + self.duration - 1e-9
+
+    def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
+        if self.status is Status.RUNNING and self.engine.clock.now() >= self._deadline:
+            self.feedback_message = f"timed out after {self.duration:g} s"
+            with self.engine.halting(f"timeout of {self.path!r} after {self.duration:g} s"):
+                self.stop(Status.FAILURE)
+            yield self
+            return
+        yield from super().tick()
+
+    def update(self) -> Status:
+        self.feedback_message = self.decorated.feedback_message
+        return self.decorated.status
+
+
+class Guard(py_trees.decorators.Decorator):
+    """Run the child only while a condition holds.
+
+    ``mode="while"`` (an eternal guard) checks before every tick and halts a running child the
+    moment the condition turns false; ``mode="if"`` checks only before the child starts.
+    Either way a false condition is FAILURE with the condition as the reason.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        child: py_trees.behaviour.Behaviour,
+        condition: Expression,
+        mode: str,
+        engine: Engine,
+        path: str,
+    ) -> None:
+        super().__init__(name=name, child=child)
+        if mode not in ("while", "if"):
+            raise ValueError(f"guard mode must be 'while' or 'if', got {mode!r}")
+        self.condition = condition
+        self.mode = mode
+        self.engine = engine
+        self.path = path
+        self.access = engine.blackboard.client(path, reads=condition.keys)
+
+    def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
+        if self.mode == "while" or self.status is not Status.RUNNING:
+            try:
+                holds = self.condition.test(self.access.get)
+                why = f"guard {self.condition.source!r} is false"
+            except (BlackboardError, EvaluationError) as exc:
+                holds, why = False, f"guard {self.condition.source!r} cannot be evaluated: {exc}"
+            if not holds:
+                self.feedback_message = why
+                with self.engine.halting(why):
+                    self.stop(Status.FAILURE)
+                yield self
+                return
+        yield from super().tick()
+
+    def update(self) -> Status:
+        self.feedback_message = self.decorated.feedback_message
+        return self.decorated.status

@@ -1,0 +1,444 @@
+"""Hierarchical state machines on ``transitions``' HierarchicalMachine, ticked by the engine.
+
+Each state runs a skill, a tree or a nested machine; the outcome it ends with names the
+transition (SMACH style). A transition may target a sibling state or one of the machine's own
+outcomes, which ends the machine (or, for a nested machine, becomes the outcome of its state).
+Per-state timeouts run on the mission clock; guards and preemptions are blackboard conditions.
+A machine is a py_trees Behaviour, so it can sit inside a tree, and a tree can sit in a state.
+
+Cancellation order: leaving a state (by outcome, timeout or preemption) runs its exit
+callback, which halts what runs inside it (skill ``finally`` blocks run) before the next
+state is entered.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from typing import TYPE_CHECKING, Any
+
+import py_trees
+from py_trees.common import Status
+from transitions.extensions.nesting import HierarchicalMachine, NestedState
+
+from behaviors.blackboard import BlackboardError
+from skills.base import Outcome
+from skills.expression import EvaluationError, Expression
+
+if TYPE_CHECKING:
+    from behaviors.engine import Engine
+
+IDLE = "__idle__"
+START = "__start__"
+HALT = "__halt__"
+# A machine that keeps transitioning without anything left RUNNING yields after this many
+# transitions in one tick, so time still advances (the machine is not failed for it).
+MAX_TRANSITIONS_PER_TICK = 64
+
+
+class _State(NestedState):
+    separator = "/"
+
+
+class _Machine(HierarchicalMachine):
+    state_cls = _State
+
+
+@dataclass
+class Action:
+    """An entry/exit action: write a value, or log a line. Runs instantly."""
+
+    kind: str  # "set" or "log"
+    key: str = ""
+    value: Any = None
+
+
+@dataclass
+class Target:
+    """Where an outcome leads. Outcomes that leave nested machines are resolved at build time
+    into one direct transition: ``guards`` are the guards met on the way, ``chain`` the
+    ``state:outcome`` steps (``work/place:success``, ``work:done``) it stands for."""
+
+    state: str  # full path of the destination (a state, or a top-level outcome pseudo-state)
+    guards: tuple[Expression, ...] = ()
+    chain: tuple[str, ...] = ()
+
+
+@dataclass
+class StateInfo:
+    path: str
+    parent: str | None  # path of the enclosing nested-machine state, None at top level
+    content: py_trees.behaviour.Behaviour | None = None  # None for nested machines and outcomes
+    transitions: dict[str, list[Target]] = field(default_factory=dict)
+    timeout: float | None = None
+    on_enter: list[Action] = field(default_factory=list)
+    on_exit: list[Action] = field(default_factory=list)
+    outcome: str | None = None  # set on pseudo-states that stand for a machine outcome
+    initial: str | None = None  # for nested machines: path of the initial child
+    preemptions: list[tuple[Expression, list[Target]]] = field(default_factory=list)  # nested machines
+
+
+@dataclass
+class MachinePlan:
+    """Everything the builder resolved: states by path, top-level structure, outcomes."""
+
+    initial: str
+    states: dict[str, StateInfo]
+    top: list[str]
+    outcomes: list[str]
+    preemptions: list[tuple[Expression, list[Target]]]
+    success_on: frozenset[str]
+    reads: set[str]
+    writes: set[str]
+
+
+class _Model:
+    """The object ``transitions`` attaches its state and triggers to."""
+
+    state: str
+
+
+def outcome_of(node: py_trees.behaviour.Behaviour) -> tuple[str, str]:
+    """The outcome name and reason a finished node reports to the state holding it."""
+    outcome: Outcome | None = getattr(node, "outcome", None)
+    if outcome is not None:
+        return outcome.name, outcome.reason
+    name = "success" if node.status is Status.SUCCESS else "failure"
+    return name, failure_reason(node) if name == "failure" else ""
+
+
+def failure_reason(node: py_trees.behaviour.Behaviour) -> str:
+    """The reason of the deepest failed node under ``node``."""
+    reason = node.feedback_message
+    current = node
+    while True:
+        failed = [c for c in current.children if c.status is Status.FAILURE]
+        if not failed:
+            return reason
+        current = failed[-1]
+        reason = current.feedback_message or reason
+
+
+class MachineBehaviour(py_trees.behaviour.Behaviour):
+    def __init__(self, name: str, path: str, plan: MachinePlan, engine: Engine) -> None:
+        super().__init__(name)
+        self.path = path
+        self.plan = plan
+        self.engine = engine
+        self.outcome: Outcome | None = None
+        self.transitions = 0  # taken since the machine was built, for reports and benchmarks
+        self.access = engine.blackboard.client(path, reads=plan.reads, writes=plan.writes)
+        self.model = _Model()
+        self._entered_at: dict[str, float] = {}
+        self._error: str | None = None
+        self._scopes: list[tuple[str, list[tuple[Expression, list[Target]]]]] = [("", plan.preemptions)] + [
+            (path, info.preemptions) for path, info in plan.states.items() if info.preemptions
+        ]
+        self._timed = any(info.timeout is not None for info in plan.states.values())
+        self._contents = {p: i.content for p, i in plan.states.items() if i.content is not None}
+        self._watch = self._timed or any(items for _, items in self._scopes)
+        self._machine = self._build_hsm()
+        self._trigger = partial(self._machine.trigger_event, self.model)
+
+    # -- construction -----------------------------------------------------------------------
+
+    def _state_config(self, path: str) -> dict[str, Any]:
+        info = self.plan.states[path]
+        config: dict[str, Any] = {"name": path.rsplit("/", 1)[-1]}
+        # Callbacks cost time on every transition: register only those a state needs.
+        if info.timeout is not None or info.on_enter:
+            config["on_enter"] = [lambda *_a, _p=path: self._entered(_p)]
+        if info.on_exit:
+            config["on_exit"] = [lambda *_a, _p=path: self._exited(_p)]
+        # Outcomes of nested machines are resolved into direct transitions at build time, so
+        # only top-level outcomes need to exist as states.
+        children = [p for p, s in self.plan.states.items() if s.parent == path and s.outcome is None]
+        if children:
+            config["children"] = [self._state_config(c) for c in children]
+            config["initial"] = info.initial.rsplit("/", 1)[-1] if info.initial else None
+        return config
+
+    def _build_hsm(self) -> _Machine:
+        plan = self.plan
+        states: list[Any] = [IDLE] + [self._state_config(p) for p in plan.top]
+        machine = _Machine(
+            model=self.model,
+            states=states,
+            initial=IDLE,
+            auto_transitions=False,
+            ignore_invalid_triggers=False,
+            model_override=False,
+        )
+        machine.add_transition(START, "*", plan.initial)
+        machine.add_transition(HALT, "*", IDLE)
+        for path, info in plan.states.items():
+            for outcome, targets in info.transitions.items():
+                for target in targets:
+                    conditions = [self._guard_check(g) for g in target.guards] or None
+                    machine.add_transition(f"{path}:{outcome}", path, target.state, conditions=conditions)
+        for scope, preemptions in self._scopes:
+            sources = list(plan.top) if not scope else [scope]
+            for index, (_, targets) in enumerate(preemptions):
+                for target in targets:
+                    conditions = [self._guard_check(g) for g in target.guards] or None
+                    machine.add_transition(
+                        f"{scope or '/'}!preempt{index}", sources, target.state, conditions=conditions
+                    )
+        return machine
+
+    def _guard_check(self, guard: Expression):
+        def check(*_args: Any) -> bool:
+            return guard.test(self.access.get)
+
+        return check
+
+    # -- transitions callbacks --------------------------------------------------------------
+
+    def _entered(self, path: str) -> None:
+        self._entered_at[path] = self.engine.clock.now()
+        self._run_actions(path, self.plan.states[path].on_enter)
+
+    def _exited(self, path: str) -> None:
+        self._run_actions(path, self.plan.states[path].on_exit)
+
+    def _halt_content(self) -> None:
+        """Halt what runs in the active state (skills inside run their finally now).
+
+        Only the leaf state has content, so this is called right before any transition that
+        leaves a state early (timeout, preemption, halt); it leaves before anything is entered.
+        """
+        content = self._contents.get(self.model.state)
+        if content is not None and content.status is Status.RUNNING:
+            content.stop(Status.INVALID)
+
+    def _can_take(self, targets: Sequence[Target]) -> bool:
+        return any(not target.guards or all(g.test(self.access.get) for g in target.guards) for target in targets)
+
+    def _run_actions(self, path: str, actions: Sequence[Action]) -> None:
+        for action in actions:
+            try:
+                if action.kind == "set":
+                    self.access.set(action.key, action.value)
+                else:
+                    self.engine.log_sink(f"{self.path}/{path}", "info", str(action.value))
+            except BlackboardError as exc:
+                self._error = self._error or f"action of state {path!r}: {exc}"
+
+    # -- py_trees hooks ---------------------------------------------------------------------
+
+    @property
+    def state(self) -> str:
+        """The active leaf state's path, or '' when not running."""
+        state = self.model.state
+        return "" if state == IDLE else state
+
+    def initialise(self) -> None:
+        self.outcome = None
+        self._error = None
+        self._fire(START, "start", "started")
+
+    def update(self) -> Status:  # unused: tick() does the work, as in py_trees composites
+        return self.status
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status is Status.INVALID and self.outcome is None and self.model.state != IDLE:
+            self._halt_content()
+            self._fire(HALT, "halt", self.engine.halt_reason)
+
+    def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
+        if self.status is not Status.RUNNING:
+            self.initialise()
+        for _ in range(MAX_TRANSITIONS_PER_TICK):
+            if self._watch and self.outcome is None and self._error is None:
+                self._preempt_or_time_out()
+            if self.outcome is None and self._error is None:
+                leaf = self.model.state
+                content = self._contents[leaf]
+                yield from content.tick()
+                if content.status is Status.RUNNING:
+                    break
+                name, reason = outcome_of(content)
+                self._on_outcome(leaf, name, reason)
+            if self._error is not None:
+                self._end(Outcome("failure", self._error))
+            if self.outcome is not None:
+                break
+        if self.outcome is not None:
+            status = Status.SUCCESS if self.outcome.name in self.plan.success_on else Status.FAILURE
+            self.feedback_message = self.outcome.reason or f"ended with outcome {self.outcome.name!r}"
+            self.stop(status)
+        else:
+            self.status = Status.RUNNING
+        yield self
+
+    # -- stepping ---------------------------------------------------------------------------
+
+    def _preempt_or_time_out(self) -> None:
+        state = self.model.state
+        for scope, preemptions in self._scopes:
+            if scope and not (state == scope or state.startswith(scope + "/")):
+                continue
+            for index, (condition, targets) in enumerate(preemptions):
+                if any(state == t.state or state.startswith(t.state + "/") for t in targets):
+                    continue
+                try:
+                    fire = condition.test(self.access.get)
+                except (BlackboardError, EvaluationError) as exc:
+                    self._error = f"preemption {condition.source!r} cannot be evaluated: {exc}"
+                    return
+                if fire:
+                    reason = f"preempted: {condition.source!r} holds"
+                    try:
+                        possible = self._can_take(targets)
+                    except (BlackboardError, EvaluationError) as exc:
+                        self._error = f"{reason}, but a guard on the way cannot be evaluated: {exc}"
+                        return
+                    if not possible:
+                        self._error = f"{reason}, but no guard on the way to its target holds"
+                        return
+                    with self.engine.halting(reason):
+                        self._halt_content()
+                        self._fire(f"{scope or '/'}!preempt{index}", f"preempt {condition.source!r}", reason)
+                    self._settle(reason)
+                    return
+        if not self._timed:
+            return
+        now = self.engine.clock.now()
+        parts = state.split("/")
+        for depth in range(1, len(parts) + 1):
+            path = "/".join(parts[:depth])
+            timeout = self.plan.states[path].timeout
+            if timeout is not None and now - self._entered_at[path] >= timeout - 1e-9:
+                reason = f"state {path!r} timed out after {timeout:g} s"
+                with self.engine.halting(reason):
+                    self._on_outcome(path, "timeout", reason)
+                return
+
+    def _on_outcome(self, path: str, outcome: str, reason: str) -> None:
+        info = self.plan.states[path]
+        if outcome not in info.transitions:
+            handled = ", ".join(sorted(info.transitions)) or "none"
+            self._error = (
+                f"state {path!r} ended with outcome {outcome!r} but has no transition for it "
+                f"(handled: {handled})" + (f"; {reason}" if reason else "")
+            )
+            return
+        targets = info.transitions[outcome]
+        try:
+            possible = self._can_take(targets)
+        except (BlackboardError, EvaluationError) as exc:
+            self._error = f"guard of state {path!r} on {outcome!r} cannot be evaluated: {exc}"
+            return
+        if not possible:
+            self._error = f"state {path!r} ended with {outcome!r} but no guard of its transitions holds"
+            return
+        self._halt_content()  # running only when a timeout ends the state early
+        trigger = f"{path}:{outcome}"
+        self._fire(trigger, trigger, reason, targets)
+        self._settle(reason)
+
+    def _settle(self, reason: str = "") -> None:
+        """If the machine now rests on one of its outcomes, it has ended with that outcome."""
+        info = self.plan.states.get(self.model.state)
+        if info is not None and info.outcome is not None:
+            self._end(Outcome(info.outcome, reason))
+
+    def _end(self, outcome: Outcome) -> None:
+        self.outcome = outcome
+
+    def _fire(self, trigger: str, label: str, reason: str, targets: Sequence[Target] = ()) -> bool:
+        before = self.model.state
+        moved = bool(self._trigger(trigger))
+        if moved:
+            self.transitions += 1
+            after = self.model.state
+            for target in targets:  # name the outcomes a resolved chain passed through
+                if target.state == after and len(target.chain) > 1:
+                    label = " > ".join(target.chain)
+                    break
+            self.engine.trace.emit(
+                "transition",
+                self.path,
+                "" if before == IDLE else before,
+                "" if after == IDLE else after,
+                label,
+                reason,
+            )
+        return moved
+
+
+def plan_access(
+    states: Mapping[str, StateInfo], preemptions: Sequence[tuple[Expression, list[Target]]]
+) -> tuple[set[str], set[str]]:
+    reads: set[str] = set()
+    writes: set[str] = set()
+    for condition, targets in preemptions:
+        reads |= condition.keys
+        for target in targets:
+            for guard in target.guards:
+                reads |= guard.keys
+    for info in states.values():
+        for targets in info.transitions.values():
+            for target in targets:
+                for guard in target.guards:
+                    reads |= guard.keys
+        for action in (*info.on_enter, *info.on_exit):
+            if action.kind == "set":
+                writes.add(action.key)
+        for condition, targets in info.preemptions:
+            reads |= condition.keys
+            for target in targets:
+                for guard in target.guards:
+                    reads |= guard.keys
+    return reads, writes
+
+
+class Unresolved(Exception):
+    def __init__(self, state: str, outcome: str, message: str) -> None:
+        super().__init__(message)
+        self.state = state
+        self.outcome = outcome
+
+
+def resolve_outcome(
+    states: Mapping[str, StateInfo],
+    local: Mapping[str, Mapping[str, list[Target]]],
+    path: str,
+    outcome: str,
+    _seen: frozenset[str] = frozenset(),
+) -> list[Target]:
+    """Follow ``path``'s transitions for ``outcome`` through the outcomes of enclosing machines.
+
+    ``local`` holds each state's transitions as written (targets are siblings or outcomes of
+    the enclosing machine). Returns direct targets: states, or top-level outcome pseudo-states.
+    """
+    step = f"{path}:{outcome}"
+    if step in _seen:
+        raise Unresolved(path, outcome, f"outcome loop through {step!r}")
+    resolved: list[Target] = []
+    for target in local[path][outcome]:
+        resolved.extend(resolve_target(states, local, target, (step,), _seen | {step}))
+    return resolved
+
+
+def resolve_target(
+    states: Mapping[str, StateInfo],
+    local: Mapping[str, Mapping[str, list[Target]]],
+    target: Target,
+    chain: tuple[str, ...],
+    seen: frozenset[str] = frozenset(),
+) -> list[Target]:
+    """A target as written, made direct: an outcome of a nested machine continues outwards."""
+    info = states[target.state]
+    if info.outcome is None or info.parent is None:
+        return [Target(target.state, target.guards, chain)]
+    parent = info.parent
+    if info.outcome not in local.get(parent, {}):
+        raise Unresolved(
+            parent, info.outcome, f"state {parent!r} can end with outcome {info.outcome!r} but has no transition for it"
+        )
+    return [
+        Target(outer.state, target.guards + outer.guards, chain + outer.chain)
+        for outer in resolve_outcome(states, local, parent, info.outcome, seen)
+    ]

@@ -1,0 +1,4 @@
+"""What a robot is: clocks, interfaces, profiles, the simulator and hardware drivers.
+
+This layer knows nothing of skills, trees or missions.
+"""

@@ -1,0 +1,276 @@
+"""The skill contract: what a skill declares and what it receives when it runs.
+
+A skill is usable from a behaviour tree, from a state of a state machine, from a scenario test
+and from a remote process alike, so nothing here knows about py_trees or transitions.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+import random
+from collections.abc import Callable, Generator, Mapping
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from functools import cache
+from types import MappingProxyType
+from typing import Any, ClassVar, Literal, NamedTuple, Protocol
+
+from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError
+
+from robots.clock import Clock
+
+SUCCESS = "success"
+FAILURE = "failure"
+BASE_OUTCOMES: tuple[str, ...] = (SUCCESS, FAILURE)
+
+
+class _Missing:
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "MISSING"
+
+
+MISSING: Any = _Missing()
+
+
+@cache
+def _adapter(tp: Any) -> TypeAdapter[Any]:
+    return TypeAdapter(tp)
+
+
+def type_name(tp: Any) -> str:
+    return getattr(tp, "__name__", None) or str(tp).replace("typing.", "")
+
+
+def check_type(tp: Any, value: Any) -> Any:
+    """Validate ``value`` against ``tp`` strictly (ints are accepted for floats, nothing else is coerced).
+
+    Returns the validated value; raises ``TypeError`` with a readable message.
+    """
+    if tp is Any or tp is object:
+        return value
+    try:
+        return _adapter(tp).validate_python(value, strict=True)
+    except ValidationError as exc:
+        shown = repr(value)
+        if len(shown) > 60:
+            shown = shown[:57] + "..."
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first.get("loc", ()))
+        detail = f" ({where}: {first['msg']})" if where else f" ({first['msg']})"
+        raise TypeError(f"expected {type_name(tp)}, got {type(value).__name__} {shown}{detail}") from None
+
+
+@dataclass(frozen=True, slots=True)
+class Port:
+    """A typed input or output of a skill.
+
+    ``expression`` marks a string input that is a condition over blackboard keys (see
+    ``skills.expression``): the engine grants the node read access to the keys it names.
+    ``names_key`` marks a string input that names a blackboard key the skill reads or writes
+    itself (``"read"``/``"write"``), so the engine can grant that access up front.
+    """
+
+    type: Any = Any
+    default: Any = MISSING
+    doc: str = ""
+    expression: bool = False
+    names_key: Literal["read", "write"] | None = None
+
+    @property
+    def required(self) -> bool:
+        return self.default is MISSING
+
+
+def In(
+    type: Any = Any,
+    default: Any = MISSING,
+    doc: str = "",
+    *,
+    expression: bool = False,
+    names_key: Literal["read", "write"] | None = None,
+) -> Port:
+    return Port(type=type, default=default, doc=doc, expression=expression, names_key=names_key)
+
+
+def Out(type: Any = Any, doc: str = "") -> Port:
+    return Port(type=type, doc=doc)
+
+
+_NO_OUTPUTS: Mapping[str, Any] = MappingProxyType({})
+
+
+class Outcome(NamedTuple):
+    """How a run of a skill ended: an outcome name, the reason, and the values of output ports.
+
+    A NamedTuple rather than a dataclass: skills create one per run, on the engine's hot path.
+    """
+
+    name: str
+    reason: str = ""
+    outputs: Mapping[str, Any] = _NO_OUTPUTS
+
+    @classmethod
+    def success(cls, reason: str = "", **outputs: Any) -> Outcome:
+        return cls(SUCCESS, reason, outputs or _NO_OUTPUTS)
+
+    @classmethod
+    def failure(cls, reason: str, **outputs: Any) -> Outcome:
+        return cls(FAILURE, reason, outputs or _NO_OUTPUTS)
+
+
+class NoParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class BlackboardView(Protocol):
+    """The blackboard as a skill sees it: access is checked per node by the engine."""
+
+    def get(self, key: str) -> Any: ...
+
+    def set(self, key: str, value: Any) -> None: ...
+
+    def exists(self, key: str) -> bool: ...
+
+
+class Submitter(Protocol):
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]: ...
+
+
+class SkillLogger:
+    """A logger bound to one node; records also reach the run's trace through ``sink``."""
+
+    __slots__ = ("_logger", "node", "sink")
+
+    def __init__(
+        self, node: str, logger: logging.Logger | None = None, sink: Callable[[str, str, str], None] | None = None
+    ) -> None:
+        self.node = node
+        self._logger = logger or logging.getLogger("botstage.skills")
+        self.sink = sink
+
+    def log(self, level: int, message: str) -> None:
+        self._logger.log(level, "[%s] %s", self.node, message)
+        if self.sink is not None:
+            self.sink(self.node, logging.getLevelName(level).lower(), message)
+
+    def debug(self, message: str) -> None:
+        self.log(logging.DEBUG, message)
+
+    def info(self, message: str) -> None:
+        self.log(logging.INFO, message)
+
+    def warning(self, message: str) -> None:
+        self.log(logging.WARNING, message)
+
+    def error(self, message: str) -> None:
+        self.log(logging.ERROR, message)
+
+
+@dataclass(slots=True)
+class SkillContext:
+    """Everything a running skill may touch: the clock, the robot, its parameters, the blackboard.
+
+    ``submit`` sends blocking work to the worker pool; the skill then ``yield``s the returned
+    future and receives its result when it is done (on the sim clock at a deterministic tick).
+    """
+
+    clock: Clock
+    params: BaseModel
+    logger: SkillLogger
+    blackboard: BlackboardView
+    workers: Submitter
+    interfaces: Mapping[str, Any] = field(default_factory=dict)
+    rng: random.Random = field(default_factory=random.Random)
+    node: str = ""
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:
+        return self.workers.submit(fn, *args, **kwargs)
+
+    def interface(self, name: str) -> Any:
+        try:
+            return self.interfaces[name]
+        except KeyError:
+            have = ", ".join(sorted(self.interfaces)) or "none"
+            raise LookupError(f"this robot has no '{name}' interface (it has: {have})") from None
+
+
+SkillRun = Generator[Any, Any, "Outcome | str | None"]
+
+
+class Skill:
+    """Base class of every skill.
+
+    Subclasses set ``name``, ``inputs``/``outputs`` (dicts of ``Port``), ``outcomes`` (their own,
+    beyond success and failure), optionally a pydantic ``Params`` model, and implement ``run``.
+    ``run(ctx, **inputs)`` is a generator that yields once per tick while running (or yields a
+    future from ``ctx.submit`` to wait on it) and returns an ``Outcome``. A skill that always
+    finishes within its first tick may implement ``run`` as a plain function returning an Outcome.
+    Cancelling closes the generator, so ``finally:`` blocks always run.
+
+    ``kind`` is ``"action"`` (has effects) or ``"condition"`` (reads only, finishes at once);
+    the engine halts a running lower-priority branch before an action starts, never for a
+    condition.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    kind: ClassVar[Literal["action", "condition"]] = "action"
+    inputs: ClassVar[dict[str, Port]] = {}
+    outputs: ClassVar[dict[str, Port]] = {}
+    outcomes: ClassVar[tuple[str, ...]] = ()
+    Params: ClassVar[type[BaseModel]] = NoParams
+
+    # Filled in by __init_subclass__.
+    all_outcomes: ClassVar[frozenset[str]] = frozenset(BASE_OUTCOMES)
+    is_generator: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if not cls.name:
+            return  # abstract intermediate class
+        problems = []
+        if not cls.name.isidentifier():
+            problems.append(f"name {cls.name!r} must be an identifier")
+        for kind, ports in (("input", cls.inputs), ("output", cls.outputs)):
+            for port_name, port in ports.items():
+                if not isinstance(port, Port):
+                    problems.append(f"{kind} port {port_name!r} must be declared with In()/Out()")
+        if not (isinstance(cls.Params, type) and issubclass(cls.Params, BaseModel)):
+            problems.append("Params must be a pydantic BaseModel subclass")
+        if problems:
+            raise TypeError(f"skill class {cls.__qualname__}: " + "; ".join(problems))
+        cls.all_outcomes = frozenset(BASE_OUTCOMES) | frozenset(cls.outcomes)
+        cls.is_generator = inspect.isgeneratorfunction(cls.run)
+
+    def __init__(self, params: BaseModel | Mapping[str, Any] | None = None) -> None:
+        if isinstance(params, BaseModel):
+            self.params = params
+        else:
+            self.params = self.Params(**(params or {}))
+
+    def run(self, ctx: SkillContext, **inputs: Any) -> SkillRun:
+        raise NotImplementedError(f"skill {self.name!r} does not implement run()")
+
+    @classmethod
+    def describe(cls) -> dict[str, Any]:
+        """A plain description of the contract (for docs, validation and remote peers)."""
+
+        def ports(ps: dict[str, Port]) -> dict[str, Any]:
+            return {
+                n: {"type": type_name(p.type), "required": p.required, "doc": p.doc}
+                | ({} if p.required else {"default": p.default})
+                for n, p in ps.items()
+            }
+
+        return {
+            "name": cls.name,
+            "description": cls.description or (cls.__doc__ or "").strip().split("\n")[0],
+            "kind": cls.kind,
+            "inputs": ports(cls.inputs),
+            "outputs": ports(cls.outputs),
+            "outcomes": sorted(cls.all_outcomes),
+            "params": cls.Params.model_json_schema(),
+        }

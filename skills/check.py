@@ -1,0 +1,22 @@
+"""check: succeed when a condition over blackboard values holds, fail otherwise."""
+
+from __future__ import annotations
+
+from skills.base import In, Outcome, Skill, SkillContext
+from skills.expression import compile_expression
+
+
+class Check(Skill):
+    name = "check"
+    description = "Succeed if `condition` holds on the blackboard, fail (with the values) if not."
+    kind = "condition"
+    inputs = {
+        "condition": In(str, doc="e.g. `battery_pct > 20 and not estop`", expression=True),
+    }
+
+    def run(self, ctx: SkillContext, condition: str) -> Outcome:
+        expression = compile_expression(condition)
+        if expression.test(ctx.blackboard.get):
+            return Outcome.success()
+        values = ", ".join(f"{k}={ctx.blackboard.get(k)!r}" for k in sorted(expression.keys))
+        return Outcome.failure(f"{expression.source!r} is false" + (f" ({values})" if values else ""))

@@ -1,0 +1,128 @@
+"""Finds skills by name: the built-in ones and third-party ones from the entry-point group.
+
+A third-party package declares, in its pyproject.toml::
+
+    [project.entry-points."botstage.skills"]
+    my_skill = "my_package.my_module:MySkill"
+
+Scenario tests replace a skill by name with a mock of the same contract (``with_override``),
+so trees and machines cannot tell the difference.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+
+from skills.base import Skill
+
+ENTRY_POINT_GROUP = "botstage.skills"
+BUILTIN_MODULES = ("skills.wait", "skills.log", "skills.set", "skills.check")
+
+
+class UnknownSkillError(LookupError):
+    def __init__(self, name: str, known: Iterable[str]) -> None:
+        self.name = name
+        self.suggestion = suggest(name, known)
+        hint = f" (did you mean {self.suggestion!r}?)" if self.suggestion else ""
+        super().__init__(f"unknown skill {name!r}{hint}")
+
+
+def suggest(name: str, known: Iterable[str]) -> str | None:
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+@dataclass(frozen=True, slots=True)
+class PluginProblem:
+    entry_point: str
+    reason: str
+
+
+class Registry:
+    def __init__(self, skills: Iterable[type[Skill]] = ()) -> None:
+        self._skills: dict[str, type[Skill]] = {}
+        self._origin: dict[str, str] = {}
+        self.problems: list[PluginProblem] = []
+        for cls in skills:
+            self.register(cls)
+
+    @classmethod
+    def default(cls) -> Registry:
+        """Built-in skills plus every installed plugin."""
+        registry = cls()
+        for module_name in BUILTIN_MODULES:
+            module = importlib.import_module(module_name)
+            for value in vars(module).values():
+                if (
+                    isinstance(value, type)
+                    and issubclass(value, Skill)
+                    and value.name
+                    and value.__module__ == module_name
+                ):
+                    registry.register(value, origin="builtin")
+        registry.load_entry_points()
+        return registry
+
+    def register(self, cls: type[Skill], *, origin: str = "", replace: bool = False) -> None:
+        if not (isinstance(cls, type) and issubclass(cls, Skill) and cls.name):
+            raise TypeError(f"{cls!r} is not a Skill subclass with a name")
+        if cls.name in self._skills and not replace and self._skills[cls.name] is not cls:
+            raise ValueError(f"skill {cls.name!r} is already registered (from {self._origin[cls.name] or 'code'})")
+        self._skills[cls.name] = cls
+        self._origin[cls.name] = origin
+
+    def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> None:
+        """Register plugins; a broken plugin is recorded in ``problems``, never fatal."""
+        for ep in entry_points(group=group):
+            label = f"{ep.name} = {ep.value}"
+            try:
+                cls = ep.load()
+            except Exception as exc:
+                self.problems.append(PluginProblem(label, f"import failed: {type(exc).__name__}: {exc}"))
+                continue
+            if not (isinstance(cls, type) and issubclass(cls, Skill) and cls.name):
+                self.problems.append(PluginProblem(label, "does not point to a Skill subclass with a name"))
+                continue
+            if cls.name != ep.name:
+                self.problems.append(
+                    PluginProblem(label, f"entry point name differs from the skill's name {cls.name!r}")
+                )
+                continue
+            if cls.name in self._skills and self._skills[cls.name] is not cls:
+                self.problems.append(
+                    PluginProblem(label, f"skill {cls.name!r} already comes from {self._origin[cls.name]}")
+                )
+                continue
+            dist = getattr(ep, "dist", None)
+            self.register(cls, origin=f"plugin {dist.name if dist else ep.value}")
+
+    def get(self, name: str) -> type[Skill]:
+        try:
+            return self._skills[name]
+        except KeyError:
+            raise UnknownSkillError(name, self._skills) from None
+
+    def origin(self, name: str) -> str:
+        return self._origin[name]
+
+    def with_override(self, cls: type[Skill], name: str | None = None) -> Registry:
+        """A copy where ``name`` (default: ``cls.name``) resolves to ``cls``."""
+        copy = Registry()
+        copy._skills = dict(self._skills)
+        copy._origin = dict(self._origin)
+        copy._skills[name or cls.name] = cls
+        copy._origin[name or cls.name] = "override"
+        return copy
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._skills
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(sorted(self._skills))
+
+    def __len__(self) -> int:
+        return len(self._skills)

@@ -1,0 +1,231 @@
+"""Engine overhead against plain py_trees and raw transitions, measured side by side.
+
+Prints one JSON object per line:
+- ``tree_*``: per-node tick cost of a 1,001-node tree of trivial skills through the engine
+  (trace recorded in memory, status changes tracked) against the same tree of plain py_trees
+  Behaviours ticked by ``py_trees.trees.BehaviourTree``; once with leaves that succeed at once
+  (every leaf starts and ends a skill each tick) and once with leaves that stay RUNNING.
+- ``machine``: per-trigger cost of a 3-level hierarchical machine whose states run trivial
+  skills through the engine, against the same HierarchicalMachine driven with raw triggers.
+
+Run with ``botstage bench tick``. Timings take the best of several repeats to shed noise.
+"""
+
+from __future__ import annotations
+
+import gc
+import json
+import time
+from collections.abc import Callable
+from typing import Any
+
+import py_trees
+from transitions.extensions.nesting import HierarchicalMachine
+
+from behaviors.engine import Engine
+from robots.clock import SimClock
+from skills.base import Outcome, Skill, SkillContext, SkillRun
+from skills.registry import Registry
+
+GROUPS, LEAVES = 10, 99  # 1 root + 10 groups + 990 leaves = 1,001 nodes
+TARGET = 1.2
+
+
+class Noop(Skill):
+    name = "noop"
+    description = "Succeed at once."
+
+    def run(self, ctx: SkillContext) -> Outcome:
+        return Outcome.success()
+
+
+class Spin(Skill):
+    name = "spin"
+    description = "Run forever, one yield per tick."
+
+    def run(self, ctx: SkillContext) -> SkillRun:
+        while True:
+            yield
+
+
+def _registry() -> Registry:
+    registry = Registry.default()
+    registry.register(Noop)
+    registry.register(Spin)
+    return registry
+
+
+def _best_pair(engine: Callable[[], float], baseline: Callable[[], float], repeats: int) -> tuple[float, float]:
+    """Best of ``repeats`` for each, the two interleaved so drift affects both alike."""
+    engine_samples, baseline_samples = [], []
+    for _ in range(repeats):
+        gc.collect()
+        engine_samples.append(engine())
+        gc.collect()
+        baseline_samples.append(baseline())
+    return min(engine_samples), min(baseline_samples)
+
+
+def _timed(tick: Callable[[], Any], ticks: int) -> Callable[[], float]:
+    def run() -> float:
+        start = time.perf_counter()
+        for _ in range(ticks):
+            tick()
+        return (time.perf_counter() - start) / ticks
+
+    return run
+
+
+def tree_spec(leaf: str, composite: str) -> dict[str, Any]:
+    """Memory-less sequences when leaves succeed, parallels when they run: every leaf ticks."""
+    options = {"memory": False} if composite == "sequence" else {}
+    return {composite: [{composite: [leaf] * LEAVES, **options} for _ in range(GROUPS)], **options}
+
+
+def plain_tree(leaf_cls: type[py_trees.behaviour.Behaviour], composite: str) -> py_trees.trees.BehaviourTree:
+    def make(name: str, children: list[py_trees.behaviour.Behaviour]) -> py_trees.behaviour.Behaviour:
+        if composite == "sequence":
+            return py_trees.composites.Sequence(name, memory=False, children=children)
+        return py_trees.composites.Parallel(
+            name, policy=py_trees.common.ParallelPolicy.SuccessOnAll(), children=children
+        )
+
+    groups = [make(f"g{g}", [leaf_cls(f"l{g}_{i}") for i in range(LEAVES)]) for g in range(GROUPS)]
+    return py_trees.trees.BehaviourTree(make("root", groups))
+
+
+def bench_tree(variant: str, ticks: int, repeats: int) -> dict[str, Any]:
+    leaf, plain_leaf, root = {
+        "instant": ("noop", py_trees.behaviours.Success, "sequence"),
+        "running": ("spin", py_trees.behaviours.Running, "parallel"),
+    }[variant]
+    engine = Engine(clock=SimClock(100), registry=_registry())
+    tree = engine.builder().tree(tree_spec(leaf, root))
+    engine.set_root(tree)
+    nodes = sum(1 for _ in tree.iterate())
+    plain = plain_tree(plain_leaf, root)
+    engine.tick()
+    plain.tick()  # warm up both
+    engine_s, plain_s = _best_pair(_timed(engine.tick, ticks), _timed(plain.tick, ticks), repeats)
+    events = engine.trace.count
+    engine.close()
+    return {
+        "bench": f"tree_{variant}",
+        "nodes": nodes,
+        "ticks_per_repeat": ticks,
+        "repeats": repeats,
+        "engine_us_per_node": round(engine_s / nodes * 1e6, 3),
+        "py_trees_us_per_node": round(plain_s / nodes * 1e6, 3),
+        "ratio": round(engine_s / plain_s, 3),
+        "target": TARGET,
+        "trace_events": events,
+    }
+
+
+# 3 levels: top {A, B}; A {A1, A2}; A1 {x, y}. Leaves visited in a ring that crosses levels.
+RING = ["A/A1/x", "A/A1/y", "A/A2", "B"]
+
+
+def machine_spec() -> dict[str, Any]:
+    def leaf(nxt: str) -> dict[str, Any]:
+        return {"skill": "noop", "transitions": {"success": nxt}}
+
+    return {
+        "initial": "A",
+        "outcomes": ["success", "failure"],
+        "states": {
+            "A": {
+                "machine": {
+                    "initial": "A1",
+                    "outcomes": ["to_b"],
+                    "states": {
+                        "A1": {
+                            "machine": {
+                                "initial": "x",
+                                "outcomes": ["to_a2"],
+                                "states": {"x": leaf("y"), "y": leaf("to_a2")},
+                            },
+                            "transitions": {"to_a2": "A2"},
+                        },
+                        "A2": leaf("to_b"),
+                    },
+                },
+                "transitions": {"to_b": "B"},
+            },
+            "B": leaf("A"),
+        },
+    }
+
+
+def raw_machine() -> tuple[Any, list[str]]:
+    class Model:
+        pass
+
+    class State(HierarchicalMachine.state_cls):  # type: ignore[name-defined,misc]
+        separator = "/"
+
+    class Machine(HierarchicalMachine):
+        state_cls = State
+
+    states = [
+        {"name": "A", "initial": "A1", "children": [{"name": "A1", "initial": "x", "children": ["x", "y"]}, "A2"]},
+        "B",
+    ]
+    model = Model()
+    machine = Machine(model=model, states=states, initial="A", auto_transitions=False)
+    machine.add_transition("next", "A/A1/x", "A/A1/y")
+    machine.add_transition("next", "A/A1/y", "A/A2")
+    machine.add_transition("next", "A/A2", "B")
+    machine.add_transition("next", "B", "A")
+    return model, RING
+
+
+def bench_machine(triggers: int, repeats: int) -> dict[str, Any]:
+    engine = Engine(clock=SimClock(100), registry=_registry())
+    machine = engine.builder().machine(machine_spec())
+    engine.set_root(machine)
+    engine.tick()
+
+    def engine_run() -> float:
+        first = machine.transitions
+        start = time.perf_counter()
+        while machine.transitions - first < triggers:
+            engine.tick()
+        return (time.perf_counter() - start) / (machine.transitions - first)
+
+    model, _ = raw_machine()
+
+    def raw_run() -> float:
+        start = time.perf_counter()
+        for _ in range(triggers):
+            model.trigger("next")
+        return (time.perf_counter() - start) / triggers
+
+    engine_s, raw_s = _best_pair(engine_run, raw_run, repeats)
+    engine.close()
+    return {
+        "bench": "machine",
+        "levels": 3,
+        "triggers_per_repeat": triggers,
+        "repeats": repeats,
+        "engine_us_per_trigger": round(engine_s * 1e6, 2),
+        "transitions_us_per_trigger": round(raw_s * 1e6, 2),
+        "ratio": round(engine_s / raw_s, 3),
+        "target": TARGET,
+    }
+
+
+def main(quick: bool = False) -> list[dict[str, Any]]:
+    ticks, repeats, triggers = (20, 3, 400) if quick else (200, 7, 4000)
+    results = [
+        bench_tree("instant", ticks, repeats),
+        bench_tree("running", ticks, repeats),
+        bench_machine(triggers, repeats),
+    ]
+    for result in results:
+        print(json.dumps(result), flush=True)
+    return results
+
+
+if __name__ == "__main__":
+    main()
