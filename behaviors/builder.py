@@ -184,7 +184,11 @@ class Builder:
     def named_tree(self, name: str) -> py_trees.behaviour.Behaviour:
         if name not in self.trees:
             raise SpecError([SpecProblem((), f"unknown tree {name!r}", did_you_mean(name, self.trees))])
-        return self.tree(self.trees[name], name, ("trees", name))
+        scope = _Scope(name, ("trees", name), subtrees=(name,))
+        node = self._node(self.trees[name], scope)
+        self._raise_problems()
+        assert node is not None
+        return node
 
     def machine(self, spec: Any, name: str = "machine", spec_path: SpecPath | None = None) -> MachineBehaviour:
         scope = _Scope(name, spec_path if spec_path is not None else self.spec_root)
@@ -316,8 +320,8 @@ class Builder:
             if key in KEYWORDS or (isinstance(key, str) and key in self.engine.registry):
                 if key == "skill" and isinstance(spec.get("skill"), str):
                     return spec["skill"]
-                if key == "subtree" and isinstance(spec.get("subtree"), str):
-                    return spec["subtree"]
+                if key in ("subtree", "machine") and isinstance(spec.get(key), str):
+                    return spec[key]
                 return str(key)
         return "node"
 

@@ -14,7 +14,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 from functools import cache
 from types import MappingProxyType
-from typing import Any, ClassVar, Literal, NamedTuple, Protocol
+from typing import Any, ClassVar, Literal, NamedTuple, Protocol, get_args
 
 from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError
 
@@ -41,7 +41,12 @@ def _adapter(tp: Any) -> TypeAdapter[Any]:
 
 
 def type_name(tp: Any) -> str:
-    return getattr(tp, "__name__", None) or str(tp).replace("typing.", "")
+    """``float``, ``list[float]``, ``Any``: how a type reads in an error message."""
+    if tp is Any:
+        return "Any"
+    if get_args(tp) or not isinstance(tp, type):
+        return str(tp).replace("typing.", "")
+    return tp.__name__
 
 
 def check_type(tp: Any, value: Any) -> Any:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from skills.base import In, Outcome, Skill, SkillContext
-from skills.expression import compile_expression
+from skills.expression import EvaluationError, compile_expression
 
 
 class Check(Skill):
@@ -16,7 +16,11 @@ class Check(Skill):
 
     def run(self, ctx: SkillContext, condition: str) -> Outcome:
         expression = compile_expression(condition)
-        if expression.test(ctx.blackboard.get):
-            return Outcome.success()
-        values = ", ".join(f"{k}={ctx.blackboard.get(k)!r}" for k in sorted(expression.keys))
+        get = ctx.blackboard.get
+        try:
+            if expression.test(get):
+                return Outcome.success()
+            values = ", ".join(f"{k}={get(k)!r}" for k in sorted(expression.keys))
+        except (LookupError, EvaluationError) as exc:  # a key nobody wrote is a plain failure
+            return Outcome.failure(str(exc))
         return Outcome.failure(f"{expression.source!r} is false" + (f" ({values})" if values else ""))

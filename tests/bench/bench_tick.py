@@ -216,7 +216,7 @@ def bench_machine(triggers: int, repeats: int) -> dict[str, Any]:
 
 
 def main(quick: bool = False) -> list[dict[str, Any]]:
-    ticks, repeats, triggers = (20, 3, 400) if quick else (200, 7, 4000)
+    ticks, repeats, triggers = (20, 3, 400) if quick else (100, 15, 1500)
     results = [
         bench_tree("instant", ticks, repeats),
         bench_tree("running", ticks, repeats),
