@@ -102,6 +102,7 @@ class Engine:
             self.status = Status.FAILURE
         else:
             self.status = root.status
+        trace.emit("tick_end", self.status.value)
         if self.clock.simulated:
             self.workers.drain()
         self.clock.next_tick()

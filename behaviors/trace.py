@@ -20,6 +20,7 @@ Listener = Callable[[dict[str, Any]], None]
 # (tuples of atoms are untracked by Python's cyclic GC, so millions of them stay cheap).
 FIELDS: dict[str, tuple[str, ...]] = {
     "tick": (),
+    "tick_end": ("status",),
     "status": ("node", "old", "new", "reason"),
     "skill_start": ("node", "skill", "inputs"),
     "skill_outcome": ("node", "skill", "outcome", "reason", "outputs"),

@@ -113,6 +113,8 @@ def run(
                 "ticks": clock.ticks,
                 "trace_events": engine.trace.count,
             }
+            if isinstance(clock, WallClock):
+                summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
         finally:
             engine.close()
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")

@@ -11,9 +11,23 @@ from py_trees.common import Status
 from behaviors.engine import Engine
 from robots.clock import SimClock
 from skills.registry import Registry
+from tests.bench.bench_tick import timeouts_spec
 from tests.conftest import TEST_SKILLS
 
 TREES = {
+    # generic skills only: the heartbeat the machine waits for
+    "heartbeat": {
+        "repeat": "forever",
+        "child": {
+            "sequence": [
+                {"wait": {"duration": 0.25}},
+                {"set": {"key": "beat", "value": True}},
+                {"log": {"message": "beat"}},
+                {"wait": {"duration": 0.25}},
+                {"set": {"key": "beat", "value": False}},
+            ]
+        },
+    },
     "fetch": {
         "sequence": [
             {"log": {"message": "fetching"}},
@@ -32,8 +46,8 @@ MACHINE = {
     "outcomes": ["done", "aborted"],
     "preemptions": [{"when": "estop", "to": "aborted"}],
     "states": {
-        "warmup": {
-            "tree": {"sequence": [{"wait": {"duration": 0.3}}, {"set": {"key": "warm", "value": True}}]},
+        "warmup": {  # waits, through the shared blackboard, for the heartbeat tree
+            "tree": {"retry": 20, "child": {"sequence": [{"wait": {"duration": 0.1}}, {"condition": "beat"}]}},
             "transitions": {"success": "loop"},
         },
         "loop": {
@@ -51,6 +65,7 @@ MACHINE = {
         },
     },
 }
+ROOT = {"parallel": [{"subtree": "heartbeat"}, {"machine": MACHINE, "name": "mission"}], "policy": "success_on_one"}
 
 
 def run_mission(seed: int) -> str:
@@ -60,9 +75,9 @@ def run_mission(seed: int) -> str:
     clock = SimClock(20)
     engine = Engine(clock=clock, registry=registry, seed=seed)
     try:
-        engine.blackboard.update({"count": 1, "full": False, "estop": False}, writer="init")
-        engine.set_root(engine.builder(trees=TREES).machine(MACHINE, name="mission"))
-        engine.run(max_ticks=2000)
+        engine.blackboard.update({"count": 1, "full": False, "estop": False, "beat": False}, writer="init")
+        engine.set_root(engine.builder(trees=TREES).tree(ROOT))
+        assert engine.run(max_ticks=2000) is Status.SUCCESS
         return engine.trace.to_jsonl()
     finally:
         engine.close()
@@ -77,7 +92,9 @@ def test_same_seed_gives_a_byte_identical_trace() -> None:
     first, second = run_mission(seed=3), run_mission(seed=3)
     assert first == second
     assert '"dest":"done"' in first  # it really ran to the end: 1 -> 64 by doubling
-    assert first.count('"ev":"skill_start","node":"mission/loop/fill/guarded/work/fetch/think"') == 6
+    assert first.count('"ev":"skill_start","node":"root/mission/loop/fill/guarded/work/fetch/think"') == 6
+    assert '"ev":"bb_write","key":"beat","old":false,"new":true,"writer":"root/heartbeat/sequence/set"' in first
+    assert '"ev":"skill_cancel","node":"root/heartbeat/sequence/wait' in first  # halted when the machine ended
 
 
 @pytest.mark.parametrize(
@@ -122,8 +139,9 @@ def test_ten_thousand_ticks_of_sixty_second_timeouts_never_touch_the_wall_clock(
 ) -> None:
     """10,000 ticks at 10 Hz are 1,000 s of mission time; 60 s timeouts fire on schedule.
 
-    How long this takes in wall time is a figure of `botstage bench` (no timed assertions in
-    tests); here we prove the structural reason it is fast: nothing ever sleeps or reads real time.
+    How long this takes in wall time is a figure of `botstage bench tick` (`simclock_timeouts`;
+    no timed assertions in tests); here we prove the structural reason it is fast: nothing ever
+    sleeps or reads real time.
     """
 
     def forbidden(*_: object) -> None:
@@ -133,30 +151,14 @@ def test_ten_thousand_ticks_of_sixty_second_timeouts_never_touch_the_wall_clock(
     monkeypatch.setattr(time, "time", forbidden)
     monkeypatch.setattr(time, "monotonic", forbidden)
     engine = make_engine(rate_hz=10)
-    machine = {
-        "states": {
-            "work": {
-                "tree": {"timeout": 60, "child": {"wait": {"duration": 600}}},
-                "timeout": 60,
-                "transitions": {"failure": "work", "timeout": "work", "success": "success"},
-            },
-        }
-    }
-    engine.set_root(
-        engine.builder().tree(
-            {
-                "parallel": [
-                    {"repeat": "forever", "child": {"force_success": {"timeout": 60, "child": "drive"}}},
-                    {"machine": machine},
-                ]
-            }
-        )
-    )
+    engine.set_root(engine.builder().tree(timeouts_spec()))
     engine.run(max_ticks=10_000)
     assert engine.clock.ticks == 10_000
     assert engine.clock.now() == 1000.0
     cancels = engine.trace.of("skill_cancel")
-    tree_timeouts = [c["t"] for c in cancels if "drive" in c["node"]]
+    tree_timeouts = [c["t"] for c in cancels if c["node"].startswith("root/repeat")]
     # each restart comes one tick after the previous timeout: 60.0, 120.1, 180.2, ...
     assert tree_timeouts == [round(60.0 * k + 0.1 * (k - 1), 6) for k in range(1, 17)]
-    assert len([c for c in cancels if "wait" in c["node"]]) == 16
+    state_timeouts = [e["t"] for e in engine.trace.of("transition") if e["trigger"] == "work:timeout"]
+    assert len(state_timeouts) == 16
+    assert state_timeouts[:2] == [60.0, 120.0]  # the state re-enters at once: 60 s apart exactly

@@ -72,10 +72,11 @@ def test_bench_tick_prints_json_lines() -> None:
     result = botstage("bench", "tick", "--quick")
     assert result.returncode == 0, result.stderr
     rows = [json.loads(line) for line in result.stdout.splitlines() if line.startswith("{")]
-    assert [r["bench"] for r in rows] == ["tree_instant", "tree_running", "machine"]
-    for row in rows:
+    assert [r["bench"] for r in rows] == ["tree_instant", "tree_running", "machine", "simclock_timeouts"]
+    for row in rows[:3]:
         assert row["ratio"] > 0 and row["target"] == 1.2
     assert rows[0]["nodes"] == 1001
+    assert rows[3]["ticks"] == 10_000 and rows[3]["wall_s"] > 0
 
 
 def test_readme_and_ci_run_the_same_test_command() -> None:

@@ -215,12 +215,52 @@ def bench_machine(triggers: int, repeats: int) -> dict[str, Any]:
     }
 
 
+def timeouts_spec() -> dict[str, Any]:
+    """A mission that does nothing but wait on 60-second timeouts, in a tree and in a machine."""
+    machine = {
+        "states": {
+            "work": {
+                "tree": {"timeout": 60, "child": {"wait": {"duration": 600}}},
+                "timeout": 60,
+                "transitions": {"failure": "work", "timeout": "work", "success": "success"},
+            }
+        }
+    }
+    tree = {"repeat": "forever", "child": {"force_success": {"timeout": 60, "child": {"wait": {"duration": 600}}}}}
+    return {"parallel": [tree, {"machine": machine}]}
+
+
+def bench_timeouts(ticks: int, repeats: int) -> dict[str, Any]:
+    """Wall time of 10,000 ticks at 10 Hz (1,000 s of mission time) on the sim clock."""
+
+    def once() -> float:
+        engine = Engine(clock=SimClock(10))
+        engine.set_root(engine.builder().tree(timeouts_spec()))
+        start = time.perf_counter()
+        engine.run(max_ticks=ticks)
+        elapsed = time.perf_counter() - start
+        engine.close()
+        return elapsed
+
+    wall = min(once() for _ in range(repeats))
+    mission_s = ticks / 10
+    return {
+        "bench": "simclock_timeouts",
+        "ticks": ticks,
+        "mission_s": mission_s,
+        "repeats": repeats,
+        "wall_s": round(wall, 4),
+        "speedup_vs_realtime": round(mission_s / wall, 1),
+    }
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     ticks, repeats, triggers = (20, 3, 400) if quick else (100, 15, 1500)
     results = [
         bench_tree("instant", ticks, repeats),
         bench_tree("running", ticks, repeats),
         bench_machine(triggers, repeats),
+        bench_timeouts(10_000, 3 if quick else 5),
     ]
     for result in results:
         print(json.dumps(result), flush=True)
