@@ -39,7 +39,7 @@ from behaviors.machine import (
     resolve_target,
 )
 from behaviors.skill_behaviour import KeyRef, SkillBehaviour
-from skills.base import MISSING, Skill, check_type
+from skills.base import MISSING, check_type
 from skills.expression import Expression, ExpressionError, compile_expression, key_of
 from skills.registry import UnknownSkillError
 
@@ -276,17 +276,8 @@ class Builder:
             node = self._machine_ref(spec, scope)
         elif kind == "condition":
             self._check_options(spec, kind, OPTIONS["condition"], scope)
-            node = self._skill_node(
-                "check",
-                {"condition": spec["condition"]},
-                {},
-                None,
-                None,
-                spec,
-                scope,
-                scope.spec_path + ("condition",),
-                default_name="condition",
-            )
+            condition = {"condition": spec["condition"]}
+            node = self._skill_node("check", condition, {}, None, None, scope, scope.spec_path + ("condition",))
         else:
             node = self._skill_spec(spec, kind, scope)
         if node is not None and not hasattr(node, "path"):
@@ -499,12 +490,11 @@ class Builder:
             spec.get("outputs") or {},
             spec.get("success_on"),
             spec.get("params"),
-            spec,
             scope,
             inputs_path,
         )
 
-    def skill_parts(
+    def _skill_node(
         self,
         skill_name: str,
         inputs: Any,
@@ -513,7 +503,7 @@ class Builder:
         params: Any,
         scope: _Scope,
         inputs_path: SpecPath,
-    ) -> tuple[Skill, dict[str, Any], dict[str, str], frozenset[str]] | None:
+    ) -> SkillBehaviour | None:
         """Resolve and check everything a skill node needs; shared by tree leaves and machine states."""
         try:
             cls = self.engine.registry.get(skill_name)
@@ -595,7 +585,7 @@ class Builder:
             return None
         if not ok or success is None:
             return None
-        return skill, bound, out, success
+        return SkillBehaviour(scope.path.rsplit("/", 1)[-1], scope.path, skill, self.engine, bound, out, success)
 
     def _success_on(self, value: Any, outcomes: Iterable[str], spec_path: SpecPath) -> frozenset[str] | None:
         if value is None:
@@ -614,25 +604,6 @@ class Builder:
                 )
                 return None
         return frozenset(names)
-
-    def _skill_node(
-        self,
-        skill_name: str,
-        inputs: Any,
-        outputs: Any,
-        success_on: Any,
-        params: Any,
-        spec: Mapping[str, Any],
-        scope: _Scope,
-        inputs_path: SpecPath,
-        default_name: str | None = None,
-    ) -> SkillBehaviour | None:
-        parts = self.skill_parts(skill_name, inputs, outputs, success_on, params, scope, inputs_path)
-        if parts is None:
-            return None
-        skill, bound, out, success = parts
-        name = scope.path.rsplit("/", 1)[-1]
-        return SkillBehaviour(name, scope.path, skill, self.engine, bound, out, success)
 
     # -- machines ---------------------------------------------------------------------------
 
@@ -804,7 +775,7 @@ class Builder:
             return
         possible: set[str] = {"success", "failure"}
         if "skill" in spec:
-            parts = self.skill_parts(
+            node = self._skill_node(
                 spec["skill"],
                 spec.get("inputs") or {},
                 spec.get("outputs") or {},
@@ -813,10 +784,9 @@ class Builder:
                 scope,
                 scope.spec_path + ("inputs",),
             )
-            if parts is not None:
-                skill, bound, out, success = parts
-                info.content = SkillBehaviour(name, scope.path, skill, self.engine, bound, out, success)
-                possible = set(type(skill).all_outcomes)
+            if node is not None:
+                info.content = node
+                possible = set(type(node.skill).all_outcomes)
         elif "tree" in spec:
             tree = spec["tree"]
             if isinstance(tree, str):

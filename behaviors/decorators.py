@@ -20,7 +20,23 @@ if TYPE_CHECKING:
     from behaviors.engine import Engine
 
 
-class ClockTimeout(py_trees.decorators.Decorator):
+class _ReasonedDecorator(py_trees.decorators.Decorator):
+    """A decorator that can fail on its own, halting its child and saying why."""
+
+    engine: Engine
+
+    def _fail(self, feedback: str, halt_reason: str) -> Iterator[py_trees.behaviour.Behaviour]:
+        self.feedback_message = feedback
+        with self.engine.halting(halt_reason):
+            self.stop(Status.FAILURE)
+        yield self
+
+    def update(self) -> Status:
+        self.feedback_message = self.decorated.feedback_message
+        return self.decorated.status
+
+
+class ClockTimeout(_ReasonedDecorator):
     """Fail, halting the child, when it has run for ``duration`` seconds of mission time."""
 
     def __init__(self, name: str, child: py_trees.behaviour.Behaviour, duration: float, engine: Engine) -> None:
@@ -34,19 +50,13 @@ class ClockTimeout(py_trees.decorators.Decorator):
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
         if self.status is Status.RUNNING and self.engine.clock.now() >= self._deadline:
-            self.feedback_message = f"timed out after {self.duration:g} s"
-            with self.engine.halting(f"timeout of {self.path!r} after {self.duration:g} s"):
-                self.stop(Status.FAILURE)
-            yield self
+            why = f"timed out after {self.duration:g} s"
+            yield from self._fail(why, f"timeout of {self.path!r} after {self.duration:g} s")
             return
         yield from super().tick()
 
-    def update(self) -> Status:
-        self.feedback_message = self.decorated.feedback_message
-        return self.decorated.status
 
-
-class Guard(py_trees.decorators.Decorator):
+class Guard(_ReasonedDecorator):
     """Run the child only while a condition holds.
 
     ``mode="while"`` (an eternal guard) checks before every tick and halts a running child the
@@ -80,13 +90,6 @@ class Guard(py_trees.decorators.Decorator):
             except (BlackboardError, EvaluationError) as exc:
                 holds, why = False, f"guard {self.condition.source!r} cannot be evaluated: {exc}"
             if not holds:
-                self.feedback_message = why
-                with self.engine.halting(why):
-                    self.stop(Status.FAILURE)
-                yield self
+                yield from self._fail(why, why)
                 return
         yield from super().tick()
-
-    def update(self) -> Status:
-        self.feedback_message = self.decorated.feedback_message
-        return self.decorated.status

@@ -212,8 +212,19 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
         if content is not None and content.status is Status.RUNNING:
             content.stop(Status.INVALID)
 
-    def _can_take(self, targets: Sequence[Target]) -> bool:
-        return any(not target.guards or all(g.test(self.access.get) for g in target.guards) for target in targets)
+    def _blocked(self, targets: Sequence[Target], what: str) -> bool:
+        """True, with the reason in ``_error``, when no guard lets any of ``targets`` be taken.
+
+        Checked before leaving a state, so a transition that cannot happen never cancels anything.
+        """
+        try:
+            for target in targets:
+                if not target.guards or all(g.test(self.access.get) for g in target.guards):
+                    return False
+            self._error = f"{what} but no guard of its transitions holds"
+        except (BlackboardError, EvaluationError) as exc:
+            self._error = f"{what} but a guard of its transitions cannot be evaluated: {exc}"
+        return True
 
     def _run_actions(self, path: str, actions: Sequence[Action]) -> None:
         for action in actions:
@@ -289,13 +300,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                     return
                 if fire:
                     reason = f"preempted: {condition.source!r} holds"
-                    try:
-                        possible = self._can_take(targets)
-                    except (BlackboardError, EvaluationError) as exc:
-                        self._error = f"{reason}, but a guard on the way cannot be evaluated: {exc}"
-                        return
-                    if not possible:
-                        self._error = f"{reason}, but no guard on the way to its target holds"
+                    if self._blocked(targets, reason):
                         return
                     with self.engine.halting(reason):
                         self._halt_content()
@@ -325,13 +330,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
             )
             return
         targets = info.transitions[outcome]
-        try:
-            possible = self._can_take(targets)
-        except (BlackboardError, EvaluationError) as exc:
-            self._error = f"guard of state {path!r} on {outcome!r} cannot be evaluated: {exc}"
-            return
-        if not possible:
-            self._error = f"state {path!r} ended with {outcome!r} but no guard of its transitions holds"
+        if self._blocked(targets, f"state {path!r} ended with {outcome!r}"):
             return
         self._halt_content()  # running only when a timeout ends the state early
         trigger = f"{path}:{outcome}"
