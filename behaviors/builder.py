@@ -26,9 +26,11 @@ from typing import TYPE_CHECKING, Any
 import py_trees
 from pydantic import ValidationError
 
+from behaviors.blackboard import BlackboardError, normalise_key
 from behaviors.decorators import ClockTimeout, Guard
 from behaviors.machine import (
     Action,
+    Level,
     MachineBehaviour,
     MachinePlan,
     StateInfo,
@@ -99,6 +101,17 @@ MACHINE_KEYS = {"initial", "states", "outcomes", "preemptions", "success_on", "n
 
 
 @dataclass(frozen=True)
+class KeyUsage:
+    """A node reads or writes a blackboard key, at this place of the spec, through a port of this type."""
+
+    key: str
+    mode: str  # read or write
+    spec_path: SpecPath
+    type: Any = Any
+    node: str = ""
+
+
+@dataclass(frozen=True)
 class SpecProblem:
     path: SpecPath
     message: str
@@ -146,7 +159,7 @@ class _Scope:
     subtrees: tuple[str, ...] = ()
 
     def key(self, key: str) -> str:
-        return self.remap.get(key, key)
+        return remap_key(key, self.remap)
 
     def child(self, segment: str, *spec: str | int) -> _Scope:
         return _Scope(
@@ -171,6 +184,8 @@ class Builder:
         self.skill_params = dict(skill_params or {})
         self.spec_root = spec_root
         self.problems: list[SpecProblem] = []
+        self.usages: list[KeyUsage] = []
+        self.plans: list[MachinePlan] = []  # every machine planned, even one with problems
 
     # -- public -----------------------------------------------------------------------------
 
@@ -207,12 +222,16 @@ class Builder:
     def _problem(self, spec_path: SpecPath, message: str, hint: str = "") -> None:
         self.problems.append(SpecProblem(spec_path, message, hint))
 
-    def _name(self, spec: Mapping[str, Any], default: str, scope: _Scope) -> str:
-        name = spec.get("name", default)
-        if not isinstance(name, str) or not name or "/" in name:
-            self._problem(scope.spec_path + ("name",), "a node name must be a non-empty string without '/'")
-            return default
-        return name
+    def _key(self, raw: Any, spec_path: SpecPath, scope: _Scope) -> str | None:
+        """A blackboard key as written, checked and remapped; None (and a problem) if malformed."""
+        try:
+            return scope.key(normalise_key(raw))
+        except BlackboardError as exc:
+            self._problem(spec_path, str(exc))
+            return None
+
+    def _use(self, key: str, mode: str, spec_path: SpecPath, scope: _Scope, tp: Any = Any) -> None:
+        self.usages.append(KeyUsage(key, mode, spec_path, tp, scope.path))
 
     @staticmethod
     def _unique(names: list[str], name: str) -> str:
@@ -289,7 +308,17 @@ class Builder:
             self._problem(scope.spec_path + (key,), f"{key!r} needs a non-empty list of children")
             return []
         built, names = [], []
+        explicit: dict[str, int] = {}
         for index, item in enumerate(items):
+            given = item.get("name") if isinstance(item, Mapping) else None
+            if isinstance(given, str):
+                if given in explicit:
+                    self._problem(
+                        scope.spec_path + (key, index, "name"),
+                        f"duplicate node name {given!r}",
+                        f"sibling {explicit[given]} has it too; names identify nodes in traces",
+                    )
+                explicit.setdefault(given, index)
             default = self._default_name(item)
             segment = self._unique(names, default)
             child_scope = _Scope(f"{scope.path}/{segment}", scope.spec_path + (key, index), scope.remap, scope.subtrees)
@@ -401,7 +430,7 @@ class Builder:
                 "on_success": py_trees.common.OneShotPolicy.ON_SUCCESSFUL_COMPLETION,
                 "on_completion": py_trees.common.OneShotPolicy.ON_COMPLETION,
             }
-            if policy not in policies:
+            if not isinstance(policy, str) or policy not in policies:
                 self._problem(scope.spec_path + ("policy",), "one_shot policy must be on_success or on_completion")
                 policy = "on_success"
             return decorators.OneShot(name=name, child=child, policy=policies[policy])
@@ -442,8 +471,10 @@ class Builder:
         except ExpressionError as exc:
             self._problem(spec_path, str(exc))
             return None
-        if scope.remap and expression.keys & set(scope.remap):
-            return compile_expression(remap_condition(expression.source, scope.remap))
+        if scope.remap and any(scope.key(k) != k for k in expression.keys):
+            expression = compile_expression(remap_condition(expression.source, scope.remap))
+        for key in sorted(expression.keys):
+            self._use(key, "read", spec_path, scope)
         return expression
 
     def _subtree(self, spec: Mapping[str, Any], scope: _Scope) -> py_trees.behaviour.Behaviour | None:
@@ -531,7 +562,12 @@ class Builder:
                 continue
             value = parse_binding(raw)
             if isinstance(value, KeyRef):
-                value = KeyRef(scope.key(value.key))
+                key = self._key(value.key, inputs_path + (port_name,), scope)
+                if key is None:
+                    ok = False
+                    continue
+                value = KeyRef(key)
+                self._use(key, "read", inputs_path + (port_name,), scope, port.type)
             else:
                 try:
                     value = check_type(port.type, value)
@@ -546,7 +582,11 @@ class Builder:
                     elif scope.remap:
                         value = remap_condition(value, scope.remap)
                 elif port.names_key and isinstance(value, str):
-                    value = scope.key(value)
+                    value = self._key(value, inputs_path + (port_name,), scope)
+                    if value is None:
+                        ok = False
+                        continue
+                    self._use(value, port.names_key, inputs_path + (port_name,), scope)
             bound[port_name] = value
         for port_name, port in cls.inputs.items():
             if port.default is MISSING and port_name not in bound and port_name not in inputs:
@@ -569,7 +609,14 @@ class Builder:
                 self._problem(inputs_path[:-1] + ("outputs", port_name), "an output binds to a key name")
                 ok = False
             else:
-                out[port_name] = scope.key(key)
+                checked = self._key(key, inputs_path[:-1] + ("outputs", port_name), scope)
+                if checked is None:
+                    ok = False
+                    continue
+                out[port_name] = checked
+                self._use(
+                    checked, "write", inputs_path[:-1] + ("outputs", port_name), scope, cls.outputs[port_name].type
+                )
         success = self._success_on(success_on, cls.all_outcomes, inputs_path[:-1] + ("success_on",))
         merged = dict(self.skill_params.get(skill_name, {}))
         if params is not None:
@@ -614,10 +661,11 @@ class Builder:
             if ref not in self.machines:
                 self._problem(spec_path, f"unknown machine {ref!r}", did_you_mean(ref, self.machines))
                 return None
-            if ref in scope.subtrees:
-                self._problem(spec_path, f"machine cycle: {' -> '.join((*scope.subtrees, ref))}")
+            entry = f"machine {ref}"
+            if entry in scope.subtrees:
+                self._problem(spec_path, f"machine cycle: {' -> '.join((*scope.subtrees, entry))}")
                 return None
-            ref_scope = _Scope(scope.path, ("machines", ref), scope.remap, (*scope.subtrees, ref))
+            ref_scope = _Scope(scope.path, ("machines", ref), scope.remap, (*scope.subtrees, entry))
             return self._machine(self.machines[ref], ref_scope, scope.path.rsplit("/", 1)[-1])
         return self._machine(
             ref, _Scope(scope.path, spec_path, scope.remap, scope.subtrees), scope.path.rsplit("/", 1)[-1]
@@ -626,16 +674,17 @@ class Builder:
     def _machine(self, spec: Any, scope: _Scope, name: str) -> MachineBehaviour | None:
         states: dict[str, StateInfo] = {}
         preemptions: list[tuple[Expression, str]] = []
-        result = self._machine_level(spec, scope, "", states, preemptions)
-        if result is None:
+        level = self._machine_level(spec, scope, "", states, preemptions)
+        if level is None:
             return None
-        top, initial, outcomes = result
+        initial, outcomes = level.initial, level.outcomes
+        top = [level.full(n) for n in [*outcomes, *level.names]]
         self._resolve_outcomes(states, preemptions, scope)
         # By default a machine succeeds on `success`, or else on the first outcome it declares.
         default = "success" if "success" in outcomes else outcomes[0]
         success_on = self._success_on(spec.get("success_on", default), outcomes, scope.spec_path + ("success_on",))
         if success_on is None:
-            return None
+            success_on = frozenset({default})
         reads, writes = plan_access(states, preemptions)
         plan = MachinePlan(
             initial=initial,
@@ -643,10 +692,12 @@ class Builder:
             top=top,
             outcomes=outcomes,
             preemptions=preemptions,
+            level=level,
             success_on=success_on,
             reads=reads,
             writes=writes,
         )
+        self.plans.append(plan)
         if self.problems:
             return None
         return MachineBehaviour(name, scope.path, plan, self.engine)
@@ -661,7 +712,7 @@ class Builder:
                 try:
                     info.transitions[outcome] = resolve_outcome(states, local, path, outcome)
                 except Unresolved as exc:
-                    self._problem(scope.spec_path + ("states", *exc.state.split("/")), str(exc))
+                    self._problem(states[exc.state].spec_path, str(exc))
                     info.transitions[outcome] = []
         levels = [(None, preemptions)] + [(p, i.preemptions) for p, i in states.items() if i.preemptions]
         for _, items in levels:
@@ -670,7 +721,7 @@ class Builder:
                     step = (f"preempt {condition.source!r}",)
                     direct = [d for t in targets for d in resolve_target(states, local, t, step)]
                 except Unresolved as exc:
-                    self._problem(scope.spec_path + ("states", *exc.state.split("/")), str(exc))
+                    self._problem(states[exc.state].spec_path, str(exc))
                     direct = []
                 items[index] = (condition, direct)
 
@@ -681,7 +732,7 @@ class Builder:
         prefix: str,
         states: dict[str, StateInfo],
         preemptions: list[tuple[Expression, str]],
-    ) -> tuple[list[str], str, list[str]] | None:
+    ) -> Level | None:
         """Add one level's states (and their nested levels) under ``prefix``."""
         if not isinstance(spec, Mapping):
             self._problem(scope.spec_path, f"a machine is a mapping with `states`, got {type(spec).__name__}")
@@ -712,7 +763,7 @@ class Builder:
                     scope.spec_path + ("states", name), f"state {name!r} has the name of one of the machine's outcomes"
                 )
         initial = spec.get("initial", names[0])
-        if initial not in state_specs:
+        if not isinstance(initial, str) or initial not in state_specs:
             self._problem(
                 scope.spec_path + ("initial",),
                 f"initial state {initial!r} is not a state",
@@ -720,12 +771,12 @@ class Builder:
             )
             initial = names[0]
 
-        def full(name: str) -> str:
-            return f"{prefix}/{name}" if prefix else name
-
+        level = Level(prefix, scope.spec_path, "", outcomes, names)
+        level.initial = level.full(initial)
+        full = level.full
         parent = prefix or None
         for outcome in outcomes:
-            states[full(outcome)] = StateInfo(full(outcome), parent, outcome=outcome)
+            states[full(outcome)] = StateInfo(full(outcome), parent, outcome=outcome, kind="outcome")
         for name, state_spec in state_specs.items():
             self._state(name, state_spec, scope.child(name, "states", name), full, names, outcomes, states, parent)
         for index, item in enumerate(spec.get("preemptions") or []):
@@ -735,17 +786,17 @@ class Builder:
                 continue
             condition = self._expression(item["when"], item_path + ("when",), scope)
             target = item["to"]
-            if target not in state_specs and target not in outcomes:
+            if not isinstance(target, str) or (target not in state_specs and target not in outcomes):
                 self._problem(
                     item_path + ("to",),
                     f"unknown state or outcome {target!r}",
                     did_you_mean(str(target), [*names, *outcomes]),
                 )
                 continue
+            level.preemptions.append((str(item["when"]), str(target)))
             if condition is not None:
                 preemptions.append((condition, [Target(full(target))]))
-        top = [full(n) for n in [*outcomes, *names]]
-        return top, full(initial), outcomes
+        return level
 
     def _state(
         self,
@@ -759,7 +810,7 @@ class Builder:
         parent: str | None,
     ) -> None:
         path = full(name)
-        info = StateInfo(path, parent)
+        info = StateInfo(path, parent, spec_path=scope.spec_path)
         states[path] = info
         if not isinstance(spec, Mapping):
             self._problem(scope.spec_path, f"state {name!r} must be a mapping with a skill, tree or machine")
@@ -774,6 +825,14 @@ class Builder:
             self._problem(scope.spec_path, f"state {name!r} needs exactly one of skill, tree or machine")
             return
         possible: set[str] = {"success", "failure"}
+        if "skill" not in spec:
+            for key in ("inputs", "outputs", "params", "success_on"):
+                if key in spec:
+                    self._problem(
+                        scope.spec_path + (key,),
+                        f"only a skill state takes {key!r}",
+                        "give it to the skill inside the tree or machine",
+                    )
         if "skill" in spec:
             node = self._skill_node(
                 spec["skill"],
@@ -784,14 +843,20 @@ class Builder:
                 scope,
                 scope.spec_path + ("inputs",),
             )
+            info.kind, info.label = "skill", str(spec["skill"])
             if node is not None:
                 info.content = node
                 possible = set(type(node.skill).all_outcomes)
         elif "tree" in spec:
             tree = spec["tree"]
+            info.kind, info.label = "tree", tree if isinstance(tree, str) else ""
             if isinstance(tree, str):
                 if tree not in self.trees:
                     self._problem(scope.spec_path + ("tree",), f"unknown tree {tree!r}", did_you_mean(tree, self.trees))
+                    return
+                if tree in scope.subtrees:
+                    cycle = " -> ".join((*scope.subtrees, tree))
+                    self._problem(scope.spec_path + ("tree",), f"tree cycle: {cycle}")
                     return
                 tree_scope = _Scope(f"{scope.path}/{tree}", ("trees", tree), scope.remap, (*scope.subtrees, tree))
                 info.content = self._node(self.trees[tree], tree_scope)
@@ -810,13 +875,19 @@ class Builder:
                         did_you_mean(nested, self.machines),
                     )
                     return
-                nested_scope = _Scope(scope.path, ("machines", nested), scope.remap, (*scope.subtrees, nested))
+                entry = f"machine {nested}"
+                if entry in scope.subtrees:
+                    cycle = " -> ".join((*scope.subtrees, entry))
+                    self._problem(scope.spec_path + ("machine",), f"machine cycle: {cycle}")
+                    return
+                nested_scope = _Scope(scope.path, ("machines", nested), scope.remap, (*scope.subtrees, entry))
                 nested = self.machines[nested]
-            result = self._machine_level(nested, nested_scope, path, states, info.preemptions)
-            if result is None:
+            info.kind, info.label = "machine", spec["machine"] if isinstance(spec["machine"], str) else ""
+            level = self._machine_level(nested, nested_scope, path, states, info.preemptions)
+            if level is None:
                 return
-            _, info.initial, nested_outcomes = result
-            possible = set(nested_outcomes)
+            info.level, info.initial = level, level.initial
+            possible = set(level.outcomes)
         timeout = spec.get("timeout")
         if timeout is not None:
             if not isinstance(timeout, int | float) or isinstance(timeout, bool) or timeout <= 0:
@@ -824,6 +895,7 @@ class Builder:
             else:
                 info.timeout = float(timeout)
                 possible.add("timeout")
+        info.possible = frozenset(possible)
         info.on_enter = self._actions(spec.get("on_enter"), scope.spec_path + ("on_enter",), scope)
         info.on_exit = self._actions(spec.get("on_exit"), scope.spec_path + ("on_exit",), scope)
         transitions = spec.get("transitions") or {}
@@ -841,6 +913,7 @@ class Builder:
                 continue
             entries = targets if isinstance(targets, list) else [targets]
             resolved = []
+            written = info.written.setdefault(outcome, [])
             for index, entry in enumerate(entries):
                 e_path = t_path + ((index,) if isinstance(targets, list) else ())
                 guard = None
@@ -851,7 +924,7 @@ class Builder:
                     if "if" in entry:
                         guard = self._expression(entry["if"], e_path + ("if",), scope)
                     entry = entry["to"]
-                if entry not in siblings and entry not in outcomes:
+                if not isinstance(entry, str) or (entry not in siblings and entry not in outcomes):
                     self._problem(
                         e_path,
                         f"transition to unknown state {entry!r}",
@@ -859,6 +932,7 @@ class Builder:
                     )
                     continue
                 resolved.append(Target(full(entry), (guard,) if guard is not None else ()))
+                written.append((str(entry), guard.source if guard is not None else ""))
             info.transitions[outcome] = resolved
 
     def _actions(self, value: Any, spec_path: SpecPath, scope: _Scope) -> list[Action]:
@@ -870,12 +944,24 @@ class Builder:
             item_path = spec_path + ((index,) if isinstance(value, list) else ())
             if isinstance(item, Mapping) and set(item) == {"set"} and isinstance(item["set"], Mapping):
                 for key, val in item["set"].items():
-                    actions.append(Action("set", scope.key(str(key)), val))
+                    checked = self._key(key, item_path + ("set", key), scope)
+                    if checked is not None:
+                        actions.append(Action("set", checked, val))
+                        self._use(checked, "write", item_path + ("set", key), scope)
             elif isinstance(item, Mapping) and set(item) == {"log"}:
                 actions.append(Action("log", value=str(item["log"])))
             else:
                 self._problem(item_path, "an action is {set: {key: value, ...}} or {log: message}")
         return actions
+
+
+def remap_key(key: str, remap: Mapping[str, str]) -> str:
+    """A subtree's remapping renames a key, or a whole namespace: {robot: r2} maps robot/mode too."""
+    best = ""
+    for inner in remap:
+        if (key == inner or key.startswith(inner + "/")) and len(inner) > len(best):
+            best = inner
+    return remap[best] + key[len(best) :] if best else key
 
 
 def remap_condition(source: str, remap: Mapping[str, str]) -> str:
@@ -891,9 +977,10 @@ def remap_condition(source: str, remap: Mapping[str, str]) -> str:
     class _Rename(ast.NodeTransformer):
         def _swap(self, node: ast.expr) -> ast.AST:
             key = key_of(node)
-            if key is not None and key in remap:
-                return ast.copy_location(as_expr(remap[key]), node)
-            return self.generic_visit(node)
+            if key is None:
+                return self.generic_visit(node)
+            mapped = remap_key(key, remap)
+            return ast.copy_location(as_expr(mapped), node) if mapped != key else node
 
         visit_Name = _swap
         visit_Attribute = _swap

@@ -64,6 +64,11 @@ class Engine:
     def log_sink(self, node: str, level: str, message: str) -> None:
         self.trace.emit("log", node, level, message)
 
+    def note_halt(self, node: py_trees.behaviour.Behaviour) -> None:
+        """A running node was halted: record it, so a restart shows as a new status change."""
+        self._last[node] = Status.INVALID
+        self.trace.emit("status", getattr(node, "path", node.name), "RUNNING", "INVALID", self.halt_reason)
+
     @contextlib.contextmanager
     def halting(self, reason: str) -> Iterator[None]:
         """Say why nodes are being halted; cancelled skills report this reason."""

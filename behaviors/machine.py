@@ -24,7 +24,7 @@ from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
 from behaviors.blackboard import BlackboardError
 from skills.base import Outcome
-from skills.expression import EvaluationError, Expression
+from skills.expression import EvaluationError, Expression, compile_expression
 
 if TYPE_CHECKING:
     from behaviors.engine import Engine
@@ -66,11 +66,33 @@ class Target:
 
 
 @dataclass
+class Level:
+    """One machine level as written: the top level, or the machine nested in a state."""
+
+    prefix: str  # "" for the top level, else the path of the state holding it
+    spec_path: tuple[str | int, ...]
+    initial: str  # full path of the initial state
+    outcomes: list[str]
+    names: list[str]  # its states, as written
+    preemptions: list[tuple[str, str]] = field(default_factory=list)  # (condition, target) as written
+
+    def full(self, name: str) -> str:
+        return f"{self.prefix}/{name}" if self.prefix else name
+
+
+@dataclass
 class StateInfo:
     path: str
     parent: str | None  # path of the enclosing nested-machine state, None at top level
     content: py_trees.behaviour.Behaviour | None = None  # None for nested machines and outcomes
     transitions: dict[str, list[Target]] = field(default_factory=dict)
+    # as written, for validation and pictures: outcome -> [(target name, guard source or "")]
+    written: dict[str, list[tuple[str, str]]] = field(default_factory=dict)
+    possible: frozenset[str] = frozenset()  # the outcomes the state can end with
+    kind: str = ""  # skill, tree, machine or outcome
+    label: str = ""  # the skill's or tree's name
+    spec_path: tuple[str | int, ...] = ()
+    level: Level | None = None  # for states holding a nested machine
     timeout: float | None = None
     on_enter: list[Action] = field(default_factory=list)
     on_exit: list[Action] = field(default_factory=list)
@@ -88,6 +110,7 @@ class MachinePlan:
     top: list[str]
     outcomes: list[str]
     preemptions: list[tuple[Expression, list[Target]]]
+    level: Level
     success_on: frozenset[str]
     reads: set[str]
     writes: set[str]
@@ -99,10 +122,14 @@ class _Model:
     state: str
 
 
-def outcome_of(node: py_trees.behaviour.Behaviour) -> tuple[str, str]:
-    """The outcome name and reason a finished node reports to the state holding it."""
+def outcome_of(node: py_trees.behaviour.Behaviour, kind: str = "skill") -> tuple[str, str]:
+    """The outcome a finished node reports to the state holding it.
+
+    A skill state reports the skill's own outcome; a tree state reports success or failure,
+    whatever node sits at the tree's root.
+    """
     outcome: Outcome | None = getattr(node, "outcome", None)
-    if outcome is not None:
+    if outcome is not None and kind == "skill":
         return outcome.name, outcome.reason
     name = "success" if node.status is Status.SUCCESS else "failure"
     return name, failure_reason(node) if name == "failure" else ""
@@ -137,6 +164,8 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
         ]
         self._timed = any(info.timeout is not None for info in plan.states.values())
         self._contents = {p: i.content for p, i in plan.states.items() if i.content is not None}
+        for content in self._contents.values():
+            content.parent = self  # what runs in a state sits under the machine (for preemption order)
         self._watch = self._timed or any(items for _, items in self._scopes)
         self._machine = self._build_hsm()
         self._trigger = partial(self._machine.trigger_event, self.model)
@@ -253,9 +282,18 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
         return self.status
 
     def terminate(self, new_status: Status) -> None:
-        if new_status is Status.INVALID and self.outcome is None and self.model.state != IDLE:
+        if new_status is Status.INVALID:
             self._halt_content()
-            self._fire(HALT, "halt", self.engine.halt_reason)
+            if self.outcome is None and self.model.state != IDLE:
+                self._fire(HALT, "halt", self.engine.halt_reason)
+
+    def _fail(self) -> None:
+        """End with failure: stop what runs in the active state and leave it (exit actions run)."""
+        reason = self._error or "failed"
+        with self.engine.halting(reason):
+            self._halt_content()
+            self._fire(HALT, "halt", reason)
+        self._end(Outcome("failure", reason))
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
         if self.status is not Status.RUNNING:
@@ -269,10 +307,10 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                 yield from content.tick()
                 if content.status is Status.RUNNING:
                     break
-                name, reason = outcome_of(content)
+                name, reason = outcome_of(content, self.plan.states[leaf].kind)
                 self._on_outcome(leaf, name, reason)
             if self._error is not None:
-                self._end(Outcome("failure", self._error))
+                self._fail()
             if self.outcome is not None:
                 break
         if self.outcome is not None:
@@ -405,19 +443,25 @@ def resolve_outcome(
     local: Mapping[str, Mapping[str, list[Target]]],
     path: str,
     outcome: str,
-    _seen: frozenset[str] = frozenset(),
 ) -> list[Target]:
     """Follow ``path``'s transitions for ``outcome`` through the outcomes of enclosing machines.
 
     ``local`` holds each state's transitions as written (targets are siblings or outcomes of
     the enclosing machine). Returns direct targets: states, or top-level outcome pseudo-states.
+    The first target whose guards hold is taken, so a later target also carries the negation
+    of each earlier one's guards: once an inner choice is made, a blocked outer guard cannot
+    fall through to the next inner choice.
     """
     step = f"{path}:{outcome}"
-    if step in _seen:
-        raise Unresolved(path, outcome, f"outcome loop through {step!r}")
     resolved: list[Target] = []
+    earlier_failed: tuple[Expression, ...] = ()
     for target in local[path][outcome]:
-        resolved.extend(resolve_target(states, local, target, (step,), _seen | {step}))
+        for direct in resolve_target(states, local, target, (step,)):
+            resolved.append(Target(direct.state, earlier_failed + direct.guards, direct.chain))
+        if not target.guards:
+            break  # always taken: later targets can never be reached
+        both = " and ".join(f"({g.source})" for g in target.guards)
+        earlier_failed += (compile_expression(f"not ({both})"),)
     return resolved
 
 
@@ -426,7 +470,6 @@ def resolve_target(
     local: Mapping[str, Mapping[str, list[Target]]],
     target: Target,
     chain: tuple[str, ...],
-    seen: frozenset[str] = frozenset(),
 ) -> list[Target]:
     """A target as written, made direct: an outcome of a nested machine continues outwards."""
     info = states[target.state]
@@ -439,5 +482,5 @@ def resolve_target(
         )
     return [
         Target(outer.state, target.guards + outer.guards, chain + outer.chain)
-        for outer in resolve_outcome(states, local, parent, info.outcome, seen)
+        for outer in resolve_outcome(states, local, parent, info.outcome)
     ]

@@ -100,6 +100,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
         self._first: Outcome | None = None
         self._fresh = False
         self._preempts = skill.kind == "action"
+        self._failed_at_start = False
         self._selectors: list[tuple[py_trees.composites.Selector, py_trees.behaviour.Behaviour]] | None = None
 
     # -- py_trees hooks ---------------------------------------------------------------------
@@ -115,14 +116,20 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
         yield self
 
     def stop(self, new_status: Status) -> None:
+        halted = new_status is Status.INVALID and self.status is Status.RUNNING
         self.terminate(new_status)
         self.status = new_status
+        if halted:
+            self.engine.note_halt(self)
 
     def initialise(self) -> None:
-        if self._preempts and (self._selectors is None or self._selectors):
+        # An action that failed at once on its last try is not let to preempt: it would cancel
+        # the lower-priority branch on every tick and never run itself (a livelock).
+        if self._preempts and not self._failed_at_start and (self._selectors is None or self._selectors):
             self._halt_lower_priority()
         self._fresh = True
         self.outcome = None
+        self.feedback_message = ""
         try:
             inputs = self._resolve_inputs() if self._has_refs else self.inputs
         except BlackboardError as exc:
@@ -137,6 +144,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
             self._fresh = False
             outcome = self._first
             self._first = None
+            self._failed_at_start = outcome is not None and outcome.name not in self.success_on
         else:
             outcome = self.execution.step()
         if outcome is None:

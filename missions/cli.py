@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import sys
 from pathlib import Path
+from types import ModuleType
 
 import typer
 from rich.console import Console
+from rich.live import Live
 from rich.table import Table
 
 from missions import DEFAULT_MISSION
@@ -20,35 +23,182 @@ app = typer.Typer(
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks: figures and ratios against a baseline run alongside.")
 app.add_typer(bench_app, name="bench")
 console = Console()
-errors = Console(stderr=True)
+
+
+def _fail(lines: list[str] | str, code: int = 1) -> typer.Exit:
+    _stderr([lines] if isinstance(lines, str) else lines)
+    return typer.Exit(code)
+
+
+def _stderr(lines: list[str]) -> None:
+    """One line per problem, never wrapped: editors and grep read `file:line:col: error: ...`."""
+    sys.stderr.write("".join(line + "\n" for line in lines))
+    sys.stderr.flush()
+
+
+@app.command()
+def validate(missions: list[Path] = typer.Argument(..., help="mission files to check")) -> None:
+    """Check missions without running them; errors as file:line:col, exit status 1 if any."""
+    from missions.check import check
+
+    failed = False
+    for path in missions:
+        checked = check(path)
+        _stderr([str(problem) for problem in checked.problems])
+        failed |= not checked.ok
+        if checked.ok:
+            console.print(f"{path}: ok")
+    if failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def schema() -> None:
+    """Print the JSON Schema of mission files (for editor completion)."""
+    from missions.schema import json_schema
+
+    sys.stdout.write(json.dumps(json_schema(), indent=2) + "\n")
+
+
+def _live_progress(live: Live):
+    def show(snapshot) -> None:
+        p = snapshot()
+        table = Table.grid(padding=(0, 2))
+        speed = p.sim_time_s / p.wall_time_s if p.wall_time_s > 0 else 0.0
+        table.add_row("mission", p.mission)
+        table.add_row(
+            "time", f"{p.sim_time_s:.1f} s mission, {p.wall_time_s:.1f} s wall ({speed:.0f}×), {p.ticks} ticks"
+        )
+        table.add_row("state", p.state or "-")
+        table.add_row("running", "\n".join(p.running[:8]) or "-")
+        live.update(table)
+
+    return show
 
 
 @app.command()
 def run(
     mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the hello mission)"),
+    backend: str = typer.Option("sim", help="sim (the built-in simulator) or hardware"),
     seed: int | None = typer.Option(None, help="random seed (default: the mission's)"),
     until: float | None = typer.Option(None, help="stop after this many seconds of mission time"),
     realtime: bool = typer.Option(False, help="pace the simulation at wall-clock speed"),
     out: Path | None = typer.Option(None, help="run folder (default: runs/<mission>-<timestamp>/)"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no live display"),
 ) -> None:
-    """Run a mission on the simulated clock and write its run folder."""
-    from missions.runner import MissionError
+    """Run a mission and write its run folder (trace.jsonl, summary.json, report.html)."""
+    from missions.runner import MissionInvalid, RunError
     from missions.runner import run as run_mission
 
     try:
-        result = run_mission(mission, seed=seed, until=until, realtime=realtime, out=out)
-    except MissionError as exc:
-        for line in str(exc).splitlines():
-            errors.print(line, markup=False, highlight=False)
-        raise typer.Exit(1) from None
+        if quiet or not console.is_terminal:
+            result = run_mission(mission, backend=backend, seed=seed, until=until, realtime=realtime, out=out)
+        else:
+            with Live(console=console, refresh_per_second=8, transient=True) as live:
+                result = run_mission(
+                    mission,
+                    backend=backend,
+                    seed=seed,
+                    until=until,
+                    realtime=realtime,
+                    out=out,
+                    progress=_live_progress(live),
+                )
+    except MissionInvalid as exc:
+        raise _fail([str(p) for p in exc.problems]) from None
+    except RunError as exc:
+        raise _fail(f"error: {exc}", 2) from None
     s = result.summary
     console.print(
-        f"[bold]{s['mission']}[/]: outcome [bold]{result.outcome}[/]" + (f" ({result.reason})" if result.reason else "")
+        f"[bold]{s['mission']}[/]: outcome [bold]{result.outcome}[/]"
+        + (f" ({result.reason})" if result.reason else ""),
+        highlight=False,
     )
     console.print(
         f"{s['ticks']} ticks, {s['sim_time_s']:g} s mission time in {s['wall_time_s']:g} s wall time; "
-        f"run folder {result.folder}"
+        f"report {result.folder / 'report.html'}",
+        highlight=False,
     )
+    if result.outcome == "interrupted":
+        raise typer.Exit(130)
+
+
+def _picture(
+    mission: Path, tree: str | None, machine: bool, fmt: str, output: Path | None, trace: Path | None, at: int | None
+) -> None:
+    from behaviors.engine import Engine
+    from behaviors.render import MACHINE_FORMATS, TREE_FORMATS, GraphvizMissing, describe, render, statuses_at
+    from behaviors.trace import read_jsonl
+    from missions.check import build_root, check, root_spec_path
+    from robots.clock import SimClock
+
+    formats = MACHINE_FORMATS if machine else TREE_FORMATS
+    if fmt not in formats:
+        raise _fail(f"error: unknown format {fmt!r}; use one of {', '.join(formats)}", 2)
+    checked = check(mission)
+    if not checked.ok:
+        raise _fail([str(p) for p in checked.problems])
+    spec = checked.mission
+    assert spec is not None
+    if machine:
+        if spec.machine is None:
+            raise _fail(f"error: {mission} has no machine; draw its trees with `botstage tree`", 2)
+        spec_path: tuple[str, ...] = ("machine",)
+    elif tree is not None:
+        if tree not in spec.trees:
+            known = ", ".join(spec.trees) or "none"
+            raise _fail(f"error: {mission} has no tree {tree!r} (trees: {known})", 2)
+        spec_path = ("trees", tree)
+    else:
+        spec_path = root_spec_path(spec)  # type: ignore[assignment]
+    statuses = None
+    if trace is not None:
+        try:
+            events = read_jsonl(trace)
+        except (OSError, ValueError) as exc:
+            raise _fail(f"error: cannot read trace {trace}: {exc}", 2) from None
+        last = events[-1]["tick"] if events else 0
+        statuses = statuses_at(events, last if at is None else at)
+    engine = Engine(clock=SimClock(spec.rate_hz))
+    try:
+        root = build_root(engine.builder(spec.trees, spec.machines, spec.skill_params), spec, spec_path)
+        try:
+            data = render(describe(root), fmt, statuses)
+        except GraphvizMissing as exc:
+            raise _fail(f"error: {exc}", 2) from None
+    finally:
+        engine.close()
+    if output is None:
+        if fmt == "png":
+            raise _fail("error: png is binary: give a file with -o", 2)
+        sys.stdout.write(data.decode())
+    else:
+        output.write_bytes(data)
+
+
+@app.command()
+def tree(
+    mission: Path = typer.Argument(DEFAULT_MISSION),
+    tree_name: str | None = typer.Option(None, "--tree", help="a named tree (default: what the mission runs)"),
+    fmt: str = typer.Option("unicode", "--format", "-f", help="ascii, unicode, dot, svg, png, mermaid or json"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write to a file instead of stdout"),
+    trace: Path | None = typer.Option(None, help="colour nodes by their status in this recorded trace.jsonl"),
+    at: int | None = typer.Option(None, help="with --trace: the tick to show (default: the last)"),
+) -> None:
+    """Draw a mission's tree (or what it runs: a machine is drawn with the trees in its states)."""
+    _picture(mission, tree_name, False, fmt, output, trace, at)
+
+
+@app.command()
+def machine(
+    mission: Path = typer.Argument(DEFAULT_MISSION),
+    fmt: str = typer.Option("ascii", "--format", "-f", help="ascii, dot, svg, png or mermaid"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write to a file instead of stdout"),
+    trace: Path | None = typer.Option(None, help="colour states and nodes by a recorded trace.jsonl"),
+    at: int | None = typer.Option(None, help="with --trace: the tick to show (default: the last)"),
+) -> None:
+    """Draw a mission's state machine, with the trees inside its states."""
+    _picture(mission, None, True, fmt, output, trace, at)
 
 
 @app.command()
@@ -68,19 +218,18 @@ def skills() -> None:
             registry.origin(name),
         )
     console.print(table)
-    for problem in registry.problems:
-        errors.print(f"plugin {problem.entry_point}: {problem.reason}", markup=False)
+    _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in registry.problems])
 
 
-def _load_bench(name: str):
+def _load_bench(name: str) -> ModuleType:
     root = Path(__file__).resolve().parent.parent / "tests" / "bench"
     path = root / f"bench_{name}.py"
     if not path.exists():
-        errors.print(
-            f"benchmark {name!r} not found at {path}: benchmarks live in the source checkout's "
-            "tests/bench/ (install it with `pip install -e .`)"
+        raise _fail(
+            f"error: benchmark {name!r} not found at {path}: benchmarks live in the source checkout's "
+            "tests/bench/ (install it with `pip install -e .`)",
+            2,
         )
-        raise typer.Exit(2)
     spec = importlib.util.spec_from_file_location(f"botstage_bench_{name}", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
@@ -90,12 +239,11 @@ def _load_bench(name: str):
 
 @bench_app.command("tick")
 def bench_tick(quick: bool = typer.Option(False, help="fewer repeats: a smoke run, not figures to quote")) -> None:
-    """Engine tick cost vs plain py_trees, and machine trigger cost vs raw transitions."""
+    """Engine tick cost vs plain py_trees, machine trigger cost vs raw transitions, 10,000 sim ticks."""
     results = _load_bench("tick").main(quick=quick)
-    failed = [r["bench"] for r in results if r.get("ratio", 0) > r.get("target", float("inf"))]
-    if failed and not quick:
-        errors.print(f"over target: {', '.join(failed)}")
-    _ = json  # figures are printed as JSON lines by the benchmark itself
+    over = [r["bench"] for r in results if r.get("ratio", 0) > r.get("target", float("inf"))]
+    if over and not quick:
+        _stderr([f"over target: {', '.join(over)}"])
 
 
 def main() -> None:  # pragma: no cover - console script entry

@@ -1,31 +1,45 @@
-"""Run a mission file on the engine and leave a run folder with its trace and summary."""
+"""Run a checked mission on the engine and leave its run folder.
+
+The folder holds ``trace.jsonl`` (streamed while the mission runs), ``summary.json`` and
+``report.html`` (both derived from the trace afterwards), and the run's artefacts.
+"""
 
 from __future__ import annotations
 
 import json
+import signal
 import time
+from collections import Counter, defaultdict
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-import yaml
+import py_trees
 from py_trees.common import Status
 
-from behaviors.builder import SpecError, SpecProblem
 from behaviors.engine import Engine
-from robots.clock import SimClock, WallClock
+from behaviors.machine import MachineBehaviour
+from behaviors.skill_behaviour import SkillBehaviour
+from behaviors.trace import Trace, jsonable
+from missions.check import Checked, build_root, check, root_spec_path
+from missions.loader import Problem
+from robots.clock import Clock, SimClock, WallClock
 
-MISSION_KEYS = {"name", "description", "seed", "rate_hz", "until", "blackboard", "trees", "machine", "root"}
+BACKENDS = ("sim", "hardware")
+WALL_CLOCK_FIELDS = ("wall_time_s", "overruns")
 
 
-class MissionError(Exception):
-    """A mission that cannot run; ``problems`` say where and why."""
-
-    def __init__(self, path: Path, problems: list[SpecProblem]) -> None:
-        self.path = path
+class MissionInvalid(Exception):
+    def __init__(self, problems: list[Problem]) -> None:
         self.problems = problems
-        super().__init__("\n".join(f"{path}: error: {p}" for p in problems))
+        super().__init__("\n".join(str(p) for p in problems))
+
+
+class RunError(Exception):
+    """The mission is valid but cannot run as asked (for example, no hardware for it)."""
 
 
 @dataclass
@@ -36,86 +50,225 @@ class RunResult:
     summary: dict[str, Any]
 
 
-def load(path: Path) -> dict[str, Any]:
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise MissionError(path, [SpecProblem((), f"cannot read the mission: {exc.strerror}")]) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        raise MissionError(path, [SpecProblem((), f"{where}YAML syntax: {getattr(exc, 'problem', exc)}")]) from None
-    if not isinstance(data, dict):
-        raise MissionError(path, [SpecProblem((), "a mission is a mapping with trees and/or a machine")])
-    unknown = [k for k in data if k not in MISSION_KEYS]
-    if unknown:
-        raise MissionError(path, [SpecProblem((k,), f"unknown mission key {k!r}") for k in unknown])
-    if "machine" not in data and "root" not in data and not data.get("trees"):
-        raise MissionError(path, [SpecProblem((), "a mission needs a `machine`, a `root` tree name, or `trees`")])
-    return data
+@dataclass
+class Progress:
+    """What the live display shows; built on demand, a few times a second at most."""
+
+    mission: str
+    sim_time_s: float
+    wall_time_s: float
+    ticks: int
+    state: str
+    running: list[str]
 
 
-def build(engine: Engine, data: dict[str, Any], path: Path) -> None:
-    trees = data.get("trees") or {}
-    builder = engine.builder(trees=trees)
-    for key, value in (data.get("blackboard") or {}).items():
-        engine.blackboard.set(key, value, writer="init")
-    try:
-        if "machine" in data:
-            root = builder.machine(data["machine"], name=data.get("name", "mission"), spec_path=("machine",))
-        else:
-            name = data.get("root") or next(iter(trees))
-            root = builder.named_tree(name)
-    except SpecError as exc:
-        raise MissionError(path, exc.problems) from None
-    engine.set_root(root)
+ProgressCallback = Callable[[Callable[[], Progress]], None]
 
 
 def run(
-    path: Path, *, seed: int | None = None, until: float | None = None, realtime: bool = False, out: Path | None = None
+    path: str | Path,
+    *,
+    backend: str = "sim",
+    seed: int | None = None,
+    until: float | None = None,
+    realtime: bool = False,
+    out: Path | None = None,
+    progress: ProgressCallback | None = None,
 ) -> RunResult:
-    data = load(path)
-    name = str(data.get("name", path.stem))
-    seed = int(data.get("seed", 0) if seed is None else seed)
-    rate = float(data.get("rate_hz", 10))
-    until = float(data.get("until", 600) if until is None else until)
-    folder = out or Path("runs") / f"{name}-{datetime.now().strftime('%Y%m%d-%H%M%S')}"
-    folder.mkdir(parents=True, exist_ok=True)
-    clock = WallClock(rate) if realtime else SimClock(rate)
+    checked = check(path)
+    if not checked.ok:
+        raise MissionInvalid(checked.problems)
+    mission = checked.mission
+    assert mission is not None
+    if backend not in BACKENDS:
+        raise RunError(f"unknown backend {backend!r}: use {' or '.join(BACKENDS)}")
+    if backend == "hardware":
+        if mission.robot is None:
+            raise RunError(
+                f"mission {mission.name!r} names no robot: there is no hardware to drive "
+                "(run it on the simulator: --backend sim)"
+            )
+        raise RunError(f"no hardware drivers for robot {mission.robot!r} yet")
+    seed = mission.seed if seed is None else seed
+    until = mission.until if until is None else until
+    folder = run_folder(mission.name, out)
+    clock: Clock = WallClock(mission.rate_hz) if realtime else SimClock(mission.rate_hz)
     started = time.perf_counter()
+    interrupted = False
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
-        from behaviors.trace import Trace
-
         engine = Engine(clock=clock, seed=seed, trace=Trace(clock, sink, keep=False))
         try:
-            build(engine, data, path)
+            root = build(engine, checked)
+            engine.set_root(root)
+            snapshot = _progress_snapshot(engine, root, mission.name, started)
             try:
-                status = engine.run(until=until)
+                with _sigterm_as_interrupt():
+                    _loop(engine, until, progress, snapshot)
             except KeyboardInterrupt:
-                engine.halt("interrupted (Ctrl-C)")
-                status = Status.FAILURE
-            root = engine.root
-            outcome = getattr(root, "outcome", None)
-            if outcome is not None:
-                result, reason = outcome.name, outcome.reason
-            elif status in (Status.SUCCESS, Status.FAILURE):
-                result, reason = status.value.lower(), getattr(root, "feedback_message", "")
-            else:
-                result, reason = "stopped", f"time limit of {until:g} s reached"
-            summary = {
-                "mission": name,
-                "backend": "sim",
-                "seed": seed,
-                "outcome": result,
-                "reason": reason,
-                "sim_time_s": round(clock.now(), 6),
-                "wall_time_s": round(time.perf_counter() - started, 3),
-                "ticks": clock.ticks,
-                "trace_events": engine.trace.count,
-            }
-            if isinstance(clock, WallClock):
-                summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
+                interrupted = True
+                engine.halt("interrupted by the operator")
+            outcome, reason = _outcome(engine, root, until, interrupted)
+            counters = {key: jsonable(engine.blackboard.get(key, None)) for key in mission.counters}
         finally:
-            engine.close()
+            engine.close("mission ended")  # cancels whatever still runs: motors stop
+    summary = summarise(
+        folder,
+        mission=mission.name,
+        robot=mission.robot,
+        backend=backend,
+        seed=seed,
+        outcome=outcome,
+        reason=reason,
+        sim_time_s=round(clock.now(), 6),
+        wall_time_s=round(time.perf_counter() - started, 3),
+        ticks=clock.ticks,
+        counters=counters,
+    )
+    if isinstance(clock, WallClock):
+        summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
+    from missions.report import write_report  # matplotlib and friends load only when reporting
+
+    summary["artefacts"] = sorted({*summary["artefacts"], "report.html"})
+    write_report(folder, checked, summary)
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    return RunResult(result, reason, folder, summary)
+    return RunResult(outcome, reason, folder, summary)
+
+
+def build(engine: Engine, checked: Checked) -> py_trees.behaviour.Behaviour:
+    """Declare the mission's keys, set its initial values and build what runs."""
+    mission = checked.mission
+    assert mission is not None
+    for key, tp in checked.key_types.items():
+        engine.blackboard.declare(key, tp)
+    for key, value in checked.key_defaults.items():
+        engine.blackboard.set(key, value, writer="init")
+    for key, value in mission.blackboard.items():
+        engine.blackboard.set(key, value, writer="init")
+    builder = engine.builder(mission.trees, mission.machines, mission.skill_params)
+    return build_root(builder, mission, root_spec_path(mission))
+
+
+def run_folder(name: str, out: Path | None) -> Path:
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        return out
+    base = Path("runs") / f"{name}-{datetime.now().strftime('%Y%m%d-%H%M%S')}"
+    folder, n = base, 1
+    while folder.exists():
+        n += 1
+        folder = base.with_name(f"{base.name}-{n}")
+    folder.mkdir(parents=True)
+    return folder
+
+
+def _loop(
+    engine: Engine, until: float | None, progress: ProgressCallback | None, snapshot: Callable[[], Progress]
+) -> None:
+    clock = engine.clock
+    next_report = 0.0
+    while until is None or clock.now() < until - 1e-9:
+        status = engine.tick()
+        if progress is not None:
+            now = time.monotonic()
+            if now >= next_report:
+                next_report = now + 0.1
+                progress(snapshot)
+        if status in (Status.SUCCESS, Status.FAILURE):
+            break
+    if progress is not None:
+        progress(snapshot)
+
+
+def _outcome(
+    engine: Engine, root: py_trees.behaviour.Behaviour, until: float | None, interrupted: bool
+) -> tuple[str, str]:
+    if interrupted:
+        return "interrupted", "interrupted by the operator"
+    if engine.error is not None:
+        return "error", engine.error
+    outcome = getattr(root, "outcome", None)
+    if outcome is not None:
+        return outcome.name, outcome.reason
+    if root.status in (Status.SUCCESS, Status.FAILURE):
+        return root.status.value.lower(), root.feedback_message
+    return "time_limit", f"the time limit of {until:g} s of mission time was reached"
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM stops a run as cleanly as Ctrl-C does (skills cancelled, motors stopped)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _progress_snapshot(
+    engine: Engine, root: py_trees.behaviour.Behaviour, name: str, started: float
+) -> Callable[[], Progress]:
+    def snapshot() -> Progress:
+        state = root.state if isinstance(root, MachineBehaviour) else ""
+        return Progress(
+            name, engine.clock.now(), time.perf_counter() - started, engine.clock.ticks, state, running_skills(root)
+        )
+
+    return snapshot
+
+
+def running_skills(node: py_trees.behaviour.Behaviour) -> list[str]:
+    """Paths of the skills running now, looking inside machine states too."""
+    found: list[str] = []
+    stack = [node]
+    while stack:
+        current = stack.pop()
+        if current.status is not Status.RUNNING:
+            continue
+        if isinstance(current, SkillBehaviour):
+            found.append(current.path)
+        elif isinstance(current, MachineBehaviour):
+            content = current.plan.states.get(current.model.state)
+            if content is not None and content.content is not None:
+                stack.append(content.content)
+        else:
+            stack.extend(reversed(current.children))
+    return found
+
+
+def summarise(folder: Path, **fields: Any) -> dict[str, Any]:
+    """summary.json's content, from the trace the run left behind."""
+    states_visited: list[str] = []
+    skill_outcomes: dict[str, Counter[str]] = defaultdict(Counter)
+    root_machine = fields["mission"]
+    with (folder / "trace.jsonl").open(encoding="utf-8") as trace:
+        for line in trace:
+            event = json.loads(line)
+            kind = event["ev"]
+            if kind == "transition" and event["dest"]:
+                machine = event["machine"]
+                states_visited.append(event["dest"] if machine == root_machine else f"{machine}/{event['dest']}")
+            elif kind == "skill_outcome":
+                skill_outcomes[event["skill"]][event["outcome"]] += 1
+            elif kind == "skill_cancel":
+                skill_outcomes[event["skill"]]["cancelled"] += 1
+    artefacts = sorted(
+        str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file() and p.name != "summary.json"
+    )
+    return {
+        **{
+            k: fields[k]
+            for k in ("mission", "robot", "backend", "seed", "outcome", "reason", "sim_time_s", "wall_time_s", "ticks")
+        },
+        "states_visited": states_visited,
+        "skill_outcomes": {skill: dict(sorted(c.items())) for skill, c in sorted(skill_outcomes.items())},
+        "counters": fields["counters"],
+        "artefacts": artefacts,
+    }

@@ -2,3 +2,7 @@
 
 This layer knows nothing of skills, trees or missions.
 """
+
+from pathlib import Path
+
+PROFILES_DIR = Path(__file__).resolve().parent / "profiles"

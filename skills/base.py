@@ -9,6 +9,7 @@ from __future__ import annotations
 import inspect
 import logging
 import random
+import threading
 from collections.abc import Callable, Generator, Mapping
 from concurrent.futures import Future
 from dataclasses import dataclass, field
@@ -147,7 +148,7 @@ class Submitter(Protocol):
 class SkillLogger:
     """A logger bound to one node; records also reach the run's trace through ``sink``."""
 
-    __slots__ = ("_logger", "node", "sink")
+    __slots__ = ("_logger", "_owner", "node", "sink")
 
     def __init__(
         self, node: str, logger: logging.Logger | None = None, sink: Callable[[str, str, str], None] | None = None
@@ -155,10 +156,13 @@ class SkillLogger:
         self.node = node
         self._logger = logger or logging.getLogger("botstage.skills")
         self.sink = sink
+        self._owner = threading.get_ident()
 
     def log(self, level: int, message: str) -> None:
         self._logger.log(level, "[%s] %s", self.node, message)
-        if self.sink is not None:
+        # Only the engine's thread writes to the trace: a line from a worker thread would land
+        # at a different place in every run. Worker code logs to Python logging only.
+        if self.sink is not None and threading.get_ident() == self._owner:
             self.sink(self.node, logging.getLevelName(level).lower(), message)
 
     def debug(self, message: str) -> None:

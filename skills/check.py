@@ -6,6 +6,13 @@ from skills.base import In, Outcome, Skill, SkillContext
 from skills.expression import EvaluationError, compile_expression
 
 
+def _shown(value: object) -> str:
+    """A value as the reason shows it, the same in every run (sets are sorted)."""
+    if isinstance(value, set | frozenset):
+        return "{" + ", ".join(sorted(repr(v) for v in value)) + "}"
+    return repr(value)
+
+
 class Check(Skill):
     name = "check"
     description = "Succeed if `condition` holds on the blackboard, fail (with the values) if not."
@@ -20,7 +27,7 @@ class Check(Skill):
         try:
             if expression.test(get):
                 return Outcome.success()
-            values = ", ".join(f"{k}={get(k)!r}" for k in sorted(expression.keys))
+            values = ", ".join(f"{k}={_shown(get(k))}" for k in sorted(expression.keys))
         except (LookupError, EvaluationError) as exc:  # a key nobody wrote is a plain failure
             return Outcome.failure(str(exc))
         return Outcome.failure(f"{expression.source!r} is false" + (f" ({values})" if values else ""))

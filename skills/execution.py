@@ -90,7 +90,7 @@ class SkillExecution:
             yielded = gen.send(value) if exc is None else gen.throw(exc)
         except StopIteration as stop:
             self._gen = None
-            return self._finish(stop.value)
+            return self._finish(stop.value)  # outside the generator: checks never raise into it
         except Exception as error:
             self._gen = None
             return self._crashed(error)
@@ -108,6 +108,10 @@ class SkillExecution:
             result = Outcome(result)
         elif not isinstance(result, Outcome):
             return Outcome(FAILURE, f"run() returned {type(result).__name__} instead of an Outcome")
+        if not isinstance(result.name, str) or not isinstance(result.reason, str):
+            return Outcome(FAILURE, "run() returned an Outcome whose name or reason is not a string")
+        if not isinstance(result.outputs, Mapping):
+            return Outcome(FAILURE, f"run() returned outputs as {type(result.outputs).__name__}, not a mapping")
         if result.name not in skill.all_outcomes:
             declared = ", ".join(sorted(skill.all_outcomes))
             return Outcome(FAILURE, f"returned undeclared outcome {result.name!r} (declared: {declared})")

@@ -67,6 +67,11 @@ class EvaluationError(RuntimeError):
     """An expression that is well formed but cannot be evaluated on the current values."""
 
 
+class _LookupFailed(Exception):
+    def __init__(self, error: Exception) -> None:
+        self.error = error
+
+
 @dataclass(frozen=True, slots=True)
 class Expression:
     source: str
@@ -74,10 +79,23 @@ class Expression:
     _evaluate: Evaluator
 
     def evaluate(self, lookup: Lookup) -> Any:
+        """The value on the current blackboard.
+
+        Errors of ``lookup`` (a key nobody wrote, no access) pass through as they are; any
+        other error (``people[0]`` of an empty list, comparing a str with a number) becomes an
+        ``EvaluationError`` naming the expression.
+        """
+
+        def guarded(key: str) -> Any:
+            try:
+                return lookup(key)
+            except Exception as exc:
+                raise _LookupFailed(exc) from exc
+
         try:
-            return self._evaluate(lookup)
-        except (EvaluationError, LookupError):
-            raise
+            return self._evaluate(guarded)
+        except _LookupFailed as failed:
+            raise failed.error from None
         except Exception as exc:
             raise EvaluationError(f"{self.source!r}: {type(exc).__name__}: {exc}") from None
 

@@ -26,8 +26,8 @@ def test_run_default_mission_writes_a_run_folder(tmp_path: Path) -> None:
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "done"
     assert summary["sim_time_s"] == 32.1
+    assert summary["artefacts"] == ["report.html", "trace.jsonl"]
     lines = (tmp_path / "run" / "trace.jsonl").read_text().splitlines()
-    assert len(lines) == summary["trace_events"]
     assert json.loads(lines[0])["ev"] == "bb_write"
 
 
@@ -42,6 +42,10 @@ def test_run_twice_gives_the_same_trace(tmp_path: Path) -> None:
     [
         ("name: x\nmachine: [unclosed\n", "YAML syntax"),
         ("- just\n- a list\n", "a mission is a mapping"),
+        (
+            "name: x\nmachine: {states: {a: {skill: wait, inputs: {duration: 1}}}}\n",
+            "bad.yaml:2:20: error: state 'a' can end with outcome 'success' but has no transition for it",
+        ),
         ("name: x\nmachine:\n  states:\n    a: {skill: wiat}\n", "unknown skill 'wiat' (did you mean 'wait'?)"),
         ("name: x\nspeed: 3\ntrees: {t: {wait: {duration: 1}}}\n", "unknown mission key 'speed'"),
     ],
@@ -58,7 +62,7 @@ def test_bad_missions_give_one_line_errors_and_exit_1(tmp_path: Path, content: s
 def test_missing_mission_file(tmp_path: Path) -> None:
     result = botstage("run", str(tmp_path / "nope.yaml"))
     assert result.returncode == 1
-    assert "cannot read the mission" in result.stderr
+    assert result.stderr == f"{tmp_path / 'nope.yaml'}:1:1: error: no such file\n"
 
 
 def test_skills_lists_the_builtin_skills() -> None:

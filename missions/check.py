@@ -1,0 +1,295 @@
+"""Check a mission before anything moves, and build it for the runner and the pictures.
+
+Every problem is reported at once as ``file:line:col: error: message (hint)``: YAML syntax,
+the mission's own keys, declared key types, unknown skills, ports and types (from the engine's
+builder), states and transitions, unreachable states, unhandled outcomes, blackboard keys read
+that nothing writes or initialises, and ports bound to keys of another declared type.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import py_trees
+from pydantic import ValidationError
+
+from behaviors.blackboard import BlackboardError, normalise_key
+from behaviors.builder import Builder, KeyUsage, SpecError, SpecPath, did_you_mean
+from behaviors.engine import Engine
+from behaviors.machine import MachinePlan
+from missions.loader import Loaded, Location, Problem, load
+from missions.schema import Mission, key_spec, parse_type
+from robots.clock import SimClock
+from skills.base import check_type, type_name
+from skills.registry import Registry
+
+
+@dataclass
+class Checked:
+    path: Path
+    loaded: Loaded
+    mission: Mission | None
+    problems: list[Problem]
+    key_types: dict[str, Any] = field(default_factory=dict)
+    key_defaults: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+class _Collector:
+    def __init__(self, loaded: Loaded) -> None:
+        self.loaded = loaded
+        self.problems: list[Problem] = list(loaded.problems)
+
+    def at(self, path: SpecPath, message: str, hint: str = "") -> None:
+        self.problems.append(Problem(self.loaded.locations.find(path), message, hint))
+
+    def result(self) -> list[Problem]:
+        unique = {(p.location, p.message): p for p in self.problems}
+        return sorted(unique.values(), key=lambda p: (p.location, p.message))
+
+
+def check(path: str | Path, registry: Registry | None = None) -> Checked:
+    """Load and check a mission file; never raises for a bad mission."""
+    path = Path(path)
+    loaded = load(path)
+    out = _Collector(loaded)
+    if loaded.data is None:
+        return Checked(path, loaded, None, out.result())
+    mission = _validate_top_level(loaded.data, out)
+    if not mission.name:
+        mission = mission.model_copy(update={"name": path.stem})
+    registry = registry or Registry.default()
+    checked = Checked(path, loaded, mission, [])
+    _check_keys(mission, checked, out)
+    _check_robot(mission, out)
+    params = _check_skill_params(mission, registry, out)
+    engine = Engine(clock=SimClock(mission.rate_hz), registry=registry, seed=mission.seed)
+    try:
+        builder = engine.builder(mission.trees, mission.machines, params)
+        root_path = _root_spec_path(mission, out)
+        if root_path is not None:
+            _build(builder, mission, root_path, out)
+            _check_machines(builder.plans, out)
+            _check_usages(builder.usages, mission, checked, out)
+        # every named tree and machine is checked on its own too, used or not
+        alone = engine.builder(mission.trees, mission.machines, params)
+        for name in mission.trees:
+            _build(alone, mission, ("trees", name), out)
+        for name in mission.machines:
+            _build(alone, mission, ("machines", name), out)
+        _check_machines(alone.plans, out)
+    finally:
+        engine.close()
+    checked.problems = out.result()
+    return checked
+
+
+def _validate_top_level(data: dict[str, Any], out: _Collector) -> Mission:
+    """Validate the mission's own keys; drop the bad ones so the rest can still be checked."""
+    data = dict(data)
+    for _ in range(len(data) + 1):
+        try:
+            return Mission.model_validate(data)
+        except ValidationError as exc:
+            dropped = False
+            for error in exc.errors():
+                loc = tuple(error["loc"])
+                if error["type"] == "extra_forbidden":
+                    key = str(loc[-1])
+                    out.at(loc, f"unknown mission key {key!r}", did_you_mean(key, Mission.model_fields))
+                else:
+                    where = ".".join(str(p) for p in loc)
+                    message = error["msg"].removeprefix("Value error, ")
+                    out.at(loc, f"{where}: {message[:1].lower() + message[1:]}")
+                if loc and loc[0] in data:
+                    del data[loc[0]]
+                    dropped = True
+            if not dropped:
+                break
+    return Mission()
+
+
+def _check_keys(mission: Mission, checked: Checked, out: _Collector) -> None:
+    for key, raw in mission.keys.items():
+        spec = key_spec(raw)
+        try:
+            rel = normalise_key(key)
+        except BlackboardError as exc:
+            out.at(("keys", key), str(exc))
+            continue
+        try:
+            tp = parse_type(spec.type)
+        except ValueError as exc:
+            out.at(("keys", key) + (("type",) if not isinstance(raw, str) else ()), str(exc))
+            continue
+        checked.key_types[rel] = tp
+        if spec.default is not None:
+            try:
+                checked.key_defaults[rel] = check_type(tp, spec.default)
+            except TypeError as exc:
+                out.at(("keys", key, "default"), f"default of {rel!r}: {exc}")
+    for key, value in mission.blackboard.items():
+        try:
+            rel = normalise_key(key)
+        except BlackboardError as exc:
+            out.at(("blackboard", key), str(exc))
+            continue
+        declared = checked.key_types.get(rel)
+        if declared is not None:
+            try:
+                check_type(declared, value)
+            except TypeError as exc:
+                out.at(("blackboard", key), f"initial value of {rel!r} (declared {type_name(declared)}): {exc}")
+
+
+def _check_robot(mission: Mission, out: _Collector) -> None:
+    from robots import PROFILES_DIR  # profiles arrive with the simulator issue
+
+    if mission.robot is not None:
+        known = sorted(p.stem for p in PROFILES_DIR.glob("*.yaml"))
+        given = Path(mission.robot)
+        if mission.robot not in known and not (given.suffix in (".yaml", ".yml") and given.exists()):
+            out.at(
+                ("robot",),
+                f"unknown robot {mission.robot!r}",
+                did_you_mean(mission.robot, known)
+                or ("known: " + ", ".join(known) if known else "no robot profiles are installed yet"),
+            )
+    if mission.world is not None and mission.robot is None:
+        out.at(("world",), "a world needs a robot to put in it")
+
+
+def _check_skill_params(mission: Mission, registry: Registry, out: _Collector) -> dict[str, dict[str, Any]]:
+    valid = {}
+    for name, params in mission.skill_params.items():
+        if name not in registry:
+            out.at(("skill_params", name), f"unknown skill {name!r}", did_you_mean(name, registry))
+            continue
+        try:
+            registry.get(name).Params(**params)
+        except ValidationError as exc:
+            for error in exc.errors():
+                out.at(("skill_params", name, *error["loc"]), f"parameter of {name!r}: {error['msg']}")
+            continue
+        valid[name] = params
+    return valid
+
+
+def _root_spec_path(mission: Mission, out: _Collector) -> SpecPath | None:
+    if mission.machine is not None:
+        return ("machine",)
+    if mission.root is not None:
+        if mission.root not in mission.trees:
+            out.at(("root",), f"unknown tree {mission.root!r}", did_you_mean(mission.root, mission.trees))
+            return None
+        return ("trees", mission.root)
+    if "main" in mission.trees:
+        return ("trees", "main")
+    if len(mission.trees) == 1:
+        return ("trees", next(iter(mission.trees)))
+    if not mission.trees:
+        out.at((), "a mission needs a `machine` or `trees` to run")
+    else:
+        out.at(
+            ("trees",),
+            "several trees and no machine: say which tree runs with `root: NAME`",
+            f"trees: {', '.join(mission.trees)}",
+        )
+    return None
+
+
+def root_spec_path(mission: Mission) -> SpecPath:
+    """Which part of a valid mission runs: its machine, or its root tree."""
+    if mission.machine is not None:
+        return ("machine",)
+    if mission.root is not None:
+        return ("trees", mission.root)
+    return ("trees", "main" if "main" in mission.trees else next(iter(mission.trees)))
+
+
+def build_root(builder: Builder, mission: Mission, spec_path: SpecPath) -> py_trees.behaviour.Behaviour:
+    if spec_path == ("machine",):
+        return builder.machine(mission.machine, name=mission.name, spec_path=spec_path)
+    if spec_path[0] == "machines":
+        return builder.machine(mission.machines[spec_path[1]], name=str(spec_path[1]), spec_path=spec_path)
+    return builder.named_tree(str(spec_path[1]))
+
+
+def _build(builder: Builder, mission: Mission, spec_path: SpecPath, out: _Collector) -> None:
+    try:
+        build_root(builder, mission, spec_path)
+    except SpecError as exc:
+        for problem in exc.problems:
+            out.at(problem.path, problem.message, problem.hint)
+
+
+def _check_machines(plans: Iterable[MachinePlan], out: _Collector) -> None:
+    for plan in plans:
+        levels = [plan.level] + [i.level for i in plan.states.values() if i.level is not None]
+        for level in levels:
+            reachable = {level.initial}
+            reachable |= {level.full(target) for _, target in level.preemptions}
+            frontier = [level.initial]
+            while frontier:
+                info = plan.states[frontier.pop()]
+                for targets in info.written.values():
+                    for name, _guard in targets:
+                        full = level.full(name)
+                        if full not in reachable:
+                            reachable.add(full)
+                            frontier.append(full)
+            for name in level.names:
+                info = plan.states[level.full(name)]
+                if info.path not in reachable:
+                    out.at(info.spec_path, f"state {name!r} is unreachable: no transition or preemption leads to it")
+                for outcome in sorted(info.possible - set(info.written)):
+                    out.at(
+                        info.spec_path,
+                        f"state {name!r} can end with outcome {outcome!r} but has no transition for it",
+                        f"add `{outcome}: <state or outcome>` to its transitions",
+                    )
+
+
+def _check_usages(usages: list[KeyUsage], mission: Mission, checked: Checked, out: _Collector) -> None:
+    written = {u.key for u in usages if u.mode == "write"}
+    initialised = set(checked.key_defaults)
+    for key in mission.blackboard:
+        with contextlib.suppress(BlackboardError):
+            initialised.add(normalise_key(key))
+    known = written | initialised | set(checked.key_types)
+    for usage in usages:
+        declared = checked.key_types.get(usage.key)
+        if usage.mode == "read" and usage.key not in written and usage.key not in initialised:
+            close = difflib.get_close_matches(usage.key, sorted(known), n=1, cutoff=0.6)
+            hint = f"did you mean {close[0]!r}?" if close else "initialise it under `blackboard:`"
+            out.at(
+                usage.spec_path, f"blackboard key {usage.key!r} is read here but nothing writes or initialises it", hint
+            )
+        if declared is not None and not _compatible(declared, usage.type, usage.mode):
+            port = "an input" if usage.mode == "read" else "an output"
+            out.at(
+                usage.spec_path,
+                f"blackboard key {usage.key!r} is declared {type_name(declared)} but is bound to "
+                f"{port} of type {type_name(usage.type)}",
+            )
+
+
+def _compatible(declared: Any, port: Any, mode: str) -> bool:
+    """Can a value of one type flow into the other (reads: key -> port; writes: port -> key)?"""
+    source, target = (declared, port) if mode == "read" else (port, declared)
+    if Any in (source, target) or source == target:
+        return True
+    if source is int and target is float:
+        return True
+    return getattr(source, "__origin__", source) is target  # list[float] into a plain list
+
+
+__all__ = ["Checked", "Location", "build_root", "check", "root_spec_path"]

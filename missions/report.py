@@ -1,0 +1,232 @@
+"""report.html: one self-contained page about a run.
+
+Summary table, a timeline of states and skills (drawn as inline SVG, plus the table behind it),
+and the pictures of the mission's machine or tree. Everything is inline (no scripts, no
+external files), so the page opens anywhere, offline, and can be attached to a bug report.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from behaviors.engine import Engine
+from behaviors.render import GraphvizMissing, describe, graphviz, to_dot, to_text
+from missions.check import Checked, build_root, root_spec_path
+from robots.clock import SimClock
+
+MAX_ROWS = 2000
+MAX_LANES = 60
+
+
+@dataclass
+class Span:
+    lane: str  # machine path for states, node path for skills
+    kind: str  # state or skill
+    name: str
+    start: float
+    end: float
+    outcome: str
+    reason: str
+    count: int = 1
+
+
+def collapse(spans: list[Span], period: float) -> list[Span]:
+    """Merge runs of instant, identical skill runs one tick apart (a condition checked every tick)."""
+    merged: list[Span] = []
+    group: dict[str, Span] = {}  # per lane, the open group of instant runs
+    for span in spans:
+        instant = span.kind == "skill" and span.start == span.end
+        current = group.get(span.lane)
+        if (
+            instant
+            and current is not None
+            and (current.name, current.outcome, current.reason) == (span.name, span.outcome, span.reason)
+            and span.start - current.end <= period + 1e-9
+        ):
+            current.end = span.end
+            current.count += 1
+            continue
+        copy = Span(**vars(span))
+        merged.append(copy)
+        if instant:
+            group[span.lane] = copy
+        else:
+            group.pop(span.lane, None)
+    return merged
+
+
+def timeline(trace_path: Path) -> list[Span]:
+    spans: list[Span] = []
+    open_states: dict[str, tuple[str, float]] = {}
+    open_skills: dict[str, tuple[str, float]] = {}
+    last_t = 0.0
+    with trace_path.open(encoding="utf-8") as trace:
+        for line in trace:
+            event = json.loads(line)
+            t = last_t = event["t"]
+            kind = event["ev"]
+            if kind == "transition":
+                machine = event["machine"]
+                if machine in open_states:
+                    state, start = open_states.pop(machine)
+                    trigger = event["trigger"]
+                    outcome = trigger.split(" > ")[0].rsplit(":", 1)[-1] if ":" in trigger else trigger
+                    spans.append(Span(machine, "state", state, start, t, outcome, event["reason"]))
+                if event["dest"]:
+                    open_states[machine] = (event["dest"], t)
+            elif kind == "skill_start":
+                open_skills[event["node"]] = (event["skill"], t)
+            elif kind in ("skill_outcome", "skill_cancel"):
+                started = open_skills.pop(event["node"], None)
+                if started is not None:
+                    outcome = event["outcome"] if kind == "skill_outcome" else "cancelled"
+                    spans.append(Span(event["node"], "skill", started[0], started[1], t, outcome, event["reason"]))
+    for machine, (state, start) in open_states.items():
+        spans.append(Span(machine, "state", state, start, last_t, "active", ""))
+    for node, (skill, start) in open_skills.items():
+        spans.append(Span(node, "skill", skill, start, last_t, "running", ""))
+    spans.sort(key=lambda s: (s.start, s.kind != "state", s.lane))
+    return spans
+
+
+_OUTCOME_COLOURS = {
+    "success": "#5cb85c",
+    "failure": "#d9534f",
+    "cancelled": "#999999",
+    "active": "#f0ad4e",
+    "running": "#f0ad4e",
+    "timeout": "#e67e22",
+}
+
+
+def _colour(outcome: str) -> str:
+    return _OUTCOME_COLOURS.get(outcome, "#5bc0de")
+
+
+def timeline_svg(spans: list[Span], duration: float) -> str:
+    lanes: list[str] = []
+    for span in spans:
+        key = f"{span.kind}:{span.lane}"
+        if key not in lanes:
+            lanes.append(key)
+    lanes.sort(key=lambda k: not k.startswith("state:"))
+    shown = lanes[:MAX_LANES]
+    index = {lane: i for i, lane in enumerate(shown)}
+    label_w, width, lane_h = 260, 1100, 18
+    scale = (width - label_w - 10) / max(duration, 1e-9)
+    height = lane_h * len(shown) + 30
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" class="timeline" '
+        f'role="img" aria-label="timeline of states and skills">'
+    ]
+    for lane, i in index.items():
+        y = 20 + i * lane_h
+        kind, _, name = lane.partition(":")
+        label = (name if len(name) <= 40 else "…" + name[-39:]) + (" (states)" if kind == "state" else "")
+        parts.append(f'<text x="4" y="{y + 13}" font-size="11">{html.escape(label)}</text>')
+    for span in spans:
+        lane = index.get(f"{span.kind}:{span.lane}")
+        if lane is None:
+            continue
+        x = label_w + span.start * scale
+        w = max((span.end - span.start) * scale, 1.5)
+        y = 20 + lane * lane_h + 2
+        tip = f"{span.name}: {span.start:g}–{span.end:g} s, {span.outcome}" + (
+            f" ({span.reason})" if span.reason else ""
+        )
+        parts.append(
+            f'<rect x="{x:.1f}" y="{y}" width="{w:.1f}" height="{lane_h - 4}" fill="{_colour(span.outcome)}">'
+            f"<title>{html.escape(tip)}</title></rect>"
+        )
+        if span.kind == "state" and w > 40:
+            parts.append(f'<text x="{x + 3:.1f}" y="{y + 11}" font-size="10">{html.escape(span.name)}</text>')
+    for k in range(6):
+        t = duration * k / 5
+        x = label_w + t * scale
+        parts.append(f'<text x="{x:.1f}" y="12" font-size="10">{t:.4g} s</text>')
+    parts.append("</svg>")
+    if len(lanes) > MAX_LANES:
+        parts.append(f"<p>{len(lanes) - MAX_LANES} more lanes are in the table below.</p>")
+    return "".join(parts)
+
+
+def pictures(checked: Checked) -> str:
+    mission = checked.mission
+    assert mission is not None
+    engine = Engine(clock=SimClock(mission.rate_hz))
+    try:
+        root = build_root(
+            engine.builder(mission.trees, mission.machines, mission.skill_params), mission, root_spec_path(mission)
+        )
+        item = describe(root)
+    finally:
+        engine.close()
+    try:
+        svg = graphviz(to_dot(item), "svg").decode()
+        svg = svg[svg.index("<svg") :]  # drop the XML prologue and doctype: inline in HTML
+        return f'<div class="picture">{svg}</div>'
+    except GraphvizMissing as exc:
+        return f"<p>{html.escape(str(exc))}</p><pre>{html.escape(to_text(item))}</pre>"
+
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
+h1 { margin-bottom: 0.2em; } h2 { margin-top: 1.6em; border-bottom: 1px solid #ddd; }
+table { border-collapse: collapse; font-size: 13px; }
+td, th { border: 1px solid #ddd; padding: 3px 8px; text-align: left; vertical-align: top; }
+th { background: #f5f5f5; }
+.picture svg { max-width: 100%; height: auto; }
+.outcome { font-weight: bold; }
+pre { background: #f8f8f8; padding: 1em; overflow-x: auto; }
+"""
+
+
+def write_report(folder: Path, checked: Checked, summary: dict[str, Any]) -> Path:
+    mission = checked.mission
+    assert mission is not None
+    spans = collapse(timeline(folder / "trace.jsonl"), 1.0 / mission.rate_hz)
+    e = html.escape
+    rows = "".join(
+        f"<tr><th>{e(k)}</th><td>{e(json.dumps(v) if not isinstance(v, str) else v)}</td></tr>"
+        for k, v in summary.items()
+        if k not in ("states_visited", "skill_outcomes")
+    )
+    outcomes = "".join(
+        f"<tr><td>{e(skill)}</td><td>{e(outcome)}</td><td>{count}</td></tr>"
+        for skill, counts in summary["skill_outcomes"].items()
+        for outcome, count in counts.items()
+    )
+    timeline_rows = "".join(
+        f"<tr><td>{s.kind}</td><td>{e(s.lane)}</td><td>{e(s.name)}{f' ×{s.count}' if s.count > 1 else ''}</td>"
+        f"<td>{s.start:g}</td><td>{s.end:g}</td>"
+        f'<td style="color:{_colour(s.outcome)}" class="outcome">{e(s.outcome)}</td><td>{e(s.reason)}</td></tr>'
+        for s in spans[:MAX_ROWS]
+    )
+    more = f"<p>{len(spans) - MAX_ROWS} more rows are in trace.jsonl.</p>" if len(spans) > MAX_ROWS else ""
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{e(mission.name)}: botstage run report</title>
+<style>{_STYLE}</style></head>
+<body>
+<h1>{e(mission.name)}</h1>
+<p>{e(mission.description)}</p>
+<p class="outcome">Outcome: {e(summary["outcome"])}{(" — " + e(summary["reason"])) if summary["reason"] else ""}</p>
+<h2 id="summary">Summary</h2>
+<table class="summary">{rows}</table>
+<h2 id="timeline">Timeline</h2>
+{timeline_svg(spans, max(summary["sim_time_s"], 1e-9))}
+<h3>Skill outcomes</h3>
+<table><tr><th>skill</th><th>outcome</th><th>count</th></tr>{outcomes}</table>
+<h3>States and skills</h3>
+<table class="timeline-table"><tr><th>kind</th><th>where</th><th>name</th><th>start s</th><th>end s</th>
+<th>outcome</th><th>reason</th></tr>{timeline_rows}</table>{more}
+<h2 id="pictures">Mission</h2>
+{pictures(checked)}
+</body></html>
+"""
+    path = folder / "report.html"
+    path.write_text(page, encoding="utf-8")
+    return path
