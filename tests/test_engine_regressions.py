@@ -50,18 +50,18 @@ class Chatty(Skill):
 
 
 @pytest.fixture
-def engine(make_engine, registry):  # noqa: ANN001, ANN201
+def engine(make_engine, registry):
     for cls in (Once, Blocked, Garbled, Chatty):
         registry.register(cls)
     return make_engine()
 
 
-def motors_running(engine) -> int:  # noqa: ANN001
+def motors_running(engine) -> int:
     logs = [e["message"] for e in engine.trace.of("log")]
     return logs.count("motors at 0.5") - logs.count("motors stopped")
 
 
-def test_a_machine_that_fails_stops_what_runs_in_its_state(engine) -> None:  # noqa: ANN001
+def test_a_machine_that_fails_stops_what_runs_in_its_state(engine) -> None:
     machine = {"states": {"a": {"skill": "drive", "timeout": 0.3, "transitions": {"success": "success"}}}}
     root = engine.builder().machine(machine, name="m")
     engine.set_root(root)
@@ -71,7 +71,7 @@ def test_a_machine_that_fails_stops_what_runs_in_its_state(engine) -> None:  # n
     assert [e["dest"] for e in engine.trace.of("transition")] == ["a", ""]
 
 
-def test_a_retried_machine_restarts_its_state_cleanly(engine) -> None:  # noqa: ANN001
+def test_a_retried_machine_restarts_its_state_cleanly(engine) -> None:
     machine = {"states": {"a": {"skill": "drive", "timeout": 0.3, "transitions": {"success": "success"}}}}
     engine.set_root(engine.builder().tree({"retry": 2, "child": {"machine": machine, "name": "m"}}))
     assert engine.run(max_ticks=20) is Status.FAILURE
@@ -79,7 +79,7 @@ def test_a_retried_machine_restarts_its_state_cleanly(engine) -> None:  # noqa: 
     assert motors_running(engine) == 0
 
 
-def test_a_preemption_that_cannot_be_evaluated_stops_the_state(engine) -> None:  # noqa: ANN001
+def test_a_preemption_that_cannot_be_evaluated_stops_the_state(engine) -> None:
     machine = {
         "preemptions": [{"when": "stop > 1", "to": "failure"}],
         "states": {"a": {"skill": "drive", "transitions": {"success": "success"}}},
@@ -94,7 +94,7 @@ def test_a_preemption_that_cannot_be_evaluated_stops_the_state(engine) -> None: 
     assert motors_running(engine) == 0
 
 
-def test_skills_inside_a_machine_preempt_lower_priority_branches_first(engine) -> None:  # noqa: ANN001
+def test_skills_inside_a_machine_preempt_lower_priority_branches_first(engine) -> None:
     tree = {
         "reactive_selector": [
             {
@@ -125,14 +125,14 @@ def test_skills_inside_a_machine_preempt_lower_priority_branches_first(engine) -
     )
 
 
-def test_an_action_failing_at_once_does_not_livelock_the_branch_below(engine) -> None:  # noqa: ANN001
+def test_an_action_failing_at_once_does_not_livelock_the_branch_below(engine) -> None:
     engine.set_root(engine.builder().tree({"reactive_selector": [{"fail": None}, {"wait": {"duration": 0.5}}]}))
     assert engine.run(max_ticks=30) is Status.SUCCESS
     assert len([e for e in engine.trace.of("skill_start") if e["skill"] == "wait"]) <= 2
 
 
 @pytest.mark.parametrize("condition", ["people[0] == 'bob'", "pose['z'] > 0"])
-def test_lookup_errors_inside_conditions_fail_the_guard_not_the_engine(engine, condition) -> None:  # noqa: ANN001
+def test_lookup_errors_inside_conditions_fail_the_guard_not_the_engine(engine, condition) -> None:
     engine.blackboard.update({"people": [], "pose": {"x": 1}})
     engine.set_root(
         engine.builder().tree(
@@ -144,7 +144,7 @@ def test_lookup_errors_inside_conditions_fail_the_guard_not_the_engine(engine, c
     assert engine.trace.of("log")[-1]["message"] == "fallback ran"
 
 
-def test_a_malformed_outcome_from_a_generator_is_a_failure(engine) -> None:  # noqa: ANN001
+def test_a_malformed_outcome_from_a_generator_is_a_failure(engine) -> None:
     engine.set_root(engine.builder().tree({"selector": ["garbled", {"log": {"message": "next"}}]}))
     assert engine.run(max_ticks=3) is Status.SUCCESS
     assert engine.error is None
@@ -152,7 +152,7 @@ def test_a_malformed_outcome_from_a_generator_is_a_failure(engine) -> None:  # n
     assert outcome["reason"] == "run() returned outputs as list, not a mapping"
 
 
-def test_a_tree_state_reports_success_or_failure_whatever_its_root(engine) -> None:  # noqa: ANN001
+def test_a_tree_state_reports_success_or_failure_whatever_its_root(engine) -> None:
     machine = {
         "states": {"a": {"tree": {"blocked": None}, "transitions": {"success": "success", "failure": "failure"}}}
     }
@@ -178,7 +178,7 @@ def test_a_tree_state_reports_success_or_failure_whatever_its_root(engine) -> No
         ),
     ],
 )
-def test_cycles_through_states_are_spec_errors(engine, trees, machines, message) -> None:  # noqa: ANN001
+def test_cycles_through_states_are_spec_errors(engine, trees, machines, message) -> None:
     with pytest.raises(SpecError, match=message):
         engine.builder(trees=trees, machines=machines).named_tree("T")
 
@@ -198,12 +198,12 @@ def test_cycles_through_states_are_spec_errors(engine, trees, machines, message)
         ({"states": {"a": {"tree": {"log": {"message": "x"}}, "inputs": {"x": 1}}}}, "only a skill state takes"),
     ],
 )
-def test_malformed_machines_are_spec_errors(engine, machine, message) -> None:  # noqa: ANN001
+def test_malformed_machines_are_spec_errors(engine, machine, message) -> None:
     with pytest.raises(SpecError, match=message.replace("[", r"\[").replace("]", r"\]")):
         engine.builder().machine(machine)
 
 
-def test_nested_outcome_guards_keep_their_meaning(engine) -> None:  # noqa: ANN001
+def test_nested_outcome_guards_keep_their_meaning(engine) -> None:
     """Inner `success` picks `finished` (a holds); the outer guard b blocks: blocked, not `retry`."""
     machine = {
         "outcomes": ["done", "failure"],
@@ -237,7 +237,7 @@ def test_nested_outcome_guards_keep_their_meaning(engine) -> None:  # noqa: ANN0
     assert engine.run(max_ticks=5) is Status.SUCCESS and root.outcome.name == "done"
 
 
-def test_remapping_renames_namespaces_alike_in_conditions_and_guards(engine) -> None:  # noqa: ANN001
+def test_remapping_renames_namespaces_alike_in_conditions_and_guards(engine) -> None:
     trees = {
         "inner": {
             "sequence": [
@@ -255,7 +255,7 @@ def test_remapping_renames_namespaces_alike_in_conditions_and_guards(engine) -> 
     assert root.children[1].access.reads == {"r2/mode"}
 
 
-def test_check_reasons_are_the_same_in_every_run(engine) -> None:  # noqa: ANN001
+def test_check_reasons_are_the_same_in_every_run(engine) -> None:
     engine.blackboard.set("ids", {"dave", "alice", "carol", "bob"})
     engine.set_root(engine.builder().tree({"condition": "'zed' in ids"}))
     engine.run(max_ticks=1)
@@ -264,14 +264,14 @@ def test_check_reasons_are_the_same_in_every_run(engine) -> None:  # noqa: ANN00
     )
 
 
-def test_logs_from_worker_threads_stay_out_of_the_trace(engine) -> None:  # noqa: ANN001
+def test_logs_from_worker_threads_stay_out_of_the_trace(engine) -> None:
     engine.set_root(engine.builder().tree({"parallel": ["chatty", {"chatty": None, "name": "c2"}]}))
     assert engine.run(max_ticks=5) is Status.SUCCESS
     assert engine.trace.of("log") == []
     assert threading.active_count() >= 1
 
 
-def test_a_halt_is_a_status_change_and_a_restart_shows_again(engine) -> None:  # noqa: ANN001
+def test_a_halt_is_a_status_change_and_a_restart_shows_again(engine) -> None:
     engine.blackboard.set("go", True)
     engine.set_root(engine.builder().tree({"reactive_sequence": [{"condition": "go"}, "drive"]}))
     engine.run(max_ticks=2)
@@ -283,7 +283,7 @@ def test_a_halt_is_a_status_change_and_a_restart_shows_again(engine) -> None:  #
     assert drive == [("INVALID", "RUNNING"), ("RUNNING", "INVALID"), ("INVALID", "RUNNING")]
 
 
-def test_a_restarted_skill_does_not_keep_its_old_reason(engine) -> None:  # noqa: ANN001
+def test_a_restarted_skill_does_not_keep_its_old_reason(engine) -> None:
     engine.blackboard.set("n", 0)
     spec: dict[str, Any] = {"repeat": 2, "child": {"force_success": {"check": {"condition": "n > 0"}}}}
     engine.set_root(engine.builder().tree(spec))
