@@ -536,6 +536,10 @@ class Builder:
         inputs_path: SpecPath,
     ) -> SkillBehaviour | None:
         """Resolve and check everything a skill node needs; shared by tree leaves and machine states."""
+        skill_path = inputs_path[:-1] + (("skill",) if inputs_path[-1] == "inputs" else (skill_name,))
+        if not isinstance(skill_name, str):
+            self._problem(skill_path, f"a skill is named by a string, got {type(skill_name).__name__}")
+            return None
         try:
             cls = self.engine.registry.get(skill_name)
         except UnknownSkillError as exc:
@@ -779,7 +783,11 @@ class Builder:
             states[full(outcome)] = StateInfo(full(outcome), parent, outcome=outcome, kind="outcome")
         for name, state_spec in state_specs.items():
             self._state(name, state_spec, scope.child(name, "states", name), full, names, outcomes, states, parent)
-        for index, item in enumerate(spec.get("preemptions") or []):
+        preemption_specs = spec.get("preemptions") or []
+        if not isinstance(preemption_specs, list):
+            self._problem(scope.spec_path + ("preemptions",), "preemptions is a list of {when: ..., to: ...}")
+            preemption_specs = []
+        for index, item in enumerate(preemption_specs):
             item_path = scope.spec_path + ("preemptions", index)
             if not isinstance(item, Mapping) or set(item) != {"when", "to"}:
                 self._problem(item_path, "a preemption is {when: <condition>, to: <state or outcome>}")

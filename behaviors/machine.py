@@ -391,7 +391,8 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
             self.transitions += 1
             after = self.model.state
             for target in targets:  # name the outcomes a resolved chain passed through
-                if target.state == after and len(target.chain) > 1:
+                lands = after == target.state or after.startswith(target.state + "/")
+                if lands and len(target.chain) > 1:
                     label = " > ".join(target.chain)
                     break
             self.engine.trace.emit(

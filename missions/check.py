@@ -22,7 +22,7 @@ from behaviors.blackboard import BlackboardError, normalise_key
 from behaviors.builder import Builder, KeyUsage, SpecError, SpecPath, did_you_mean
 from behaviors.engine import Engine
 from behaviors.machine import MachinePlan
-from missions.loader import Loaded, Location, Problem, load
+from missions.loader import Loaded, Location, Locations, Problem, load
 from missions.schema import Mission, key_spec, parse_type
 from robots.clock import SimClock
 from skills.base import check_type, type_name
@@ -56,9 +56,25 @@ class _Collector:
         return sorted(unique.values(), key=lambda p: (p.location, p.message))
 
 
+INTERNAL = "internal error while checking"
+
+
 def check(path: str | Path, registry: Registry | None = None) -> Checked:
-    """Load and check a mission file; never raises for a bad mission."""
+    """Load and check a mission file; never raises for a bad mission.
+
+    A bug in the checker itself is reported as a located problem too (and asks to be reported),
+    never as a traceback in the user's face.
+    """
     path = Path(path)
+    try:
+        return _check(path, registry)
+    except Exception as exc:  # the safety net; the fuzz test asserts it is never needed
+        where = Location(str(path), 1, 1)
+        problem = Problem(where, f"{INTERNAL}: {type(exc).__name__}: {exc}", "please report this with the file")
+        return Checked(path, Loaded(None, Locations(root=where), [], [path]), None, [problem])
+
+
+def _check(path: Path, registry: Registry | None) -> Checked:
     loaded = load(path)
     out = _Collector(loaded)
     if loaded.data is None:

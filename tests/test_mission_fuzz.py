@@ -1,0 +1,80 @@
+"""Mutated missions end in a valid load or located errors, never a traceback (2,000 cases)."""
+
+from __future__ import annotations
+
+import copy
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from missions.check import INTERNAL, check
+
+MISSIONS = [Path("missions/hello.yaml").read_text(encoding="utf-8")] + [
+    p.read_text(encoding="utf-8") for p in sorted(Path("missions").glob("*.yaml")) if p.name != "hello.yaml"
+]
+REPLACEMENTS: list[Any] = [None, 0, -1, 3.5, True, "", "x", "wait", "{missing}", [], [1, "a"], {}, {"a": None},
+                           {"sequence": []}, "estop and", "success", 1e308]
+
+
+def paths(data: Any, prefix: tuple = ()) -> list[tuple]:
+    found = [prefix]
+    if isinstance(data, dict):
+        for key, value in data.items():
+            found += paths(value, prefix + (key,))
+    elif isinstance(data, list):
+        for index, value in enumerate(data):
+            found += paths(value, prefix + (index,))
+    return found
+
+
+def parent_and_key(data: Any, path: tuple) -> tuple[Any, Any]:
+    for step in path[:-1]:
+        data = data[step]
+    return data, path[-1]
+
+
+@st.composite
+def mutated(draw: st.DrawFn) -> str:
+    text = draw(st.sampled_from(MISSIONS))
+    how = draw(st.sampled_from(["delete", "replace", "rename", "truncate", "duplicate", "several"]))
+    if how == "truncate":
+        return text[: draw(st.integers(0, len(text)))]
+    data = yaml.safe_load(text)
+    for _ in range(draw(st.integers(2, 5)) if how == "several" else 1):
+        candidates = [p for p in paths(data) if p]
+        if not candidates:
+            break
+        path = draw(st.sampled_from(candidates))
+        parent, key = parent_and_key(data, path)
+        kind = how if how != "several" else draw(st.sampled_from(["delete", "replace", "rename", "duplicate"]))
+        if kind == "delete":
+            del parent[key]
+        elif kind == "replace":
+            parent[key] = copy.deepcopy(draw(st.sampled_from(REPLACEMENTS)))
+        elif kind == "rename" and isinstance(parent, dict):
+            new = draw(st.sampled_from(["tres", "machnie", "states2", "inputs", "skill", "name", "wiat", "to", "if"]))
+            parent[new] = parent.pop(key)
+        elif kind == "duplicate" and isinstance(parent, list):
+            parent.append(copy.deepcopy(parent[key]))
+    return yaml.safe_dump(data, sort_keys=False)
+
+
+@settings(max_examples=2000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(mutated())
+def test_mutated_missions_load_or_fail_with_located_errors(text: str) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "mutant.yaml"
+        path.write_text(text, encoding="utf-8")
+        checked = check(path)  # must not raise
+        if checked.ok:
+            assert checked.mission is not None
+        for problem in checked.problems:
+            assert problem.location.file.endswith("mutant.yaml")
+            assert problem.location.line >= 1 and problem.location.col >= 1
+            assert str(problem).startswith(f"{problem.location.file}:{problem.location.line}:")
+            assert problem.message
+            assert not problem.message.startswith(INTERNAL), problem.message
