@@ -53,11 +53,15 @@ def validate(missions: list[Path] = typer.Argument(..., help="mission files to c
 
 
 @app.command()
-def schema() -> None:
+def schema(
+    builtin: bool = typer.Option(False, help="only the built-in skills (as missions/mission.schema.json has)"),
+) -> None:
     """Print the JSON Schema of mission files (for editor completion)."""
     from missions.schema import json_schema
+    from skills.registry import Registry
 
-    sys.stdout.write(json.dumps(json_schema(), indent=2) + "\n")
+    registry = Registry.builtin() if builtin else Registry.default()
+    sys.stdout.write(json.dumps(json_schema(registry), indent=2) + "\n")
 
 
 def _live_progress(live: Live):

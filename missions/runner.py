@@ -21,7 +21,7 @@ import py_trees
 from py_trees.common import Status
 
 from behaviors.engine import Engine
-from behaviors.machine import MachineBehaviour
+from behaviors.machine import MachineBehaviour, failure_reason
 from behaviors.skill_behaviour import SkillBehaviour
 from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path
@@ -74,6 +74,7 @@ def run(
     realtime: bool = False,
     out: Path | None = None,
     progress: ProgressCallback | None = None,
+    progress_interval_s: float = 0.1,
 ) -> RunResult:
     checked = check(path)
     if not checked.ok:
@@ -103,7 +104,7 @@ def run(
             snapshot = _progress_snapshot(engine, root, mission.name, started)
             try:
                 with _sigterm_as_interrupt():
-                    _loop(engine, until, progress, snapshot)
+                    _loop(engine, until, progress, snapshot, progress_interval_s)
             except KeyboardInterrupt:
                 interrupted = True
                 engine.halt("interrupted by the operator")
@@ -162,7 +163,11 @@ def run_folder(name: str, out: Path | None) -> Path:
 
 
 def _loop(
-    engine: Engine, until: float | None, progress: ProgressCallback | None, snapshot: Callable[[], Progress]
+    engine: Engine,
+    until: float | None,
+    progress: ProgressCallback | None,
+    snapshot: Callable[[], Progress],
+    interval_s: float,
 ) -> None:
     clock = engine.clock
     next_report = 0.0
@@ -171,7 +176,7 @@ def _loop(
         if progress is not None:
             now = time.monotonic()
             if now >= next_report:
-                next_report = now + 0.1
+                next_report = now + interval_s
                 progress(snapshot)
         if status in (Status.SUCCESS, Status.FAILURE):
             break
@@ -189,8 +194,10 @@ def _outcome(
     outcome = getattr(root, "outcome", None)
     if outcome is not None:
         return outcome.name, outcome.reason
-    if root.status in (Status.SUCCESS, Status.FAILURE):
-        return root.status.value.lower(), root.feedback_message
+    if root.status is Status.SUCCESS:
+        return "success", ""
+    if root.status is Status.FAILURE:
+        return "failure", failure_reason(root)
     return "time_limit", f"the time limit of {until:g} s of mission time was reached"
 
 

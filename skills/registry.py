@@ -53,6 +53,13 @@ class Registry:
     @classmethod
     def default(cls) -> Registry:
         """Built-in skills plus every installed plugin."""
+        registry = cls.builtin()
+        registry.load_entry_points()
+        return registry
+
+    @classmethod
+    def builtin(cls) -> Registry:
+        """The skills botstage ships, without plugins."""
         registry = cls()
         for module_name in BUILTIN_MODULES:
             module = importlib.import_module(module_name)
@@ -64,7 +71,6 @@ class Registry:
                     and value.__module__ == module_name
                 ):
                     registry.register(value, origin="builtin")
-        registry.load_entry_points()
         return registry
 
     def register(self, cls: type[Skill], *, origin: str = "", replace: bool = False) -> None:

@@ -16,8 +16,25 @@ from missions.check import INTERNAL, check
 MISSIONS = [Path("missions/hello.yaml").read_text(encoding="utf-8")] + [
     p.read_text(encoding="utf-8") for p in sorted(Path("missions").glob("*.yaml")) if p.name != "hello.yaml"
 ]
-REPLACEMENTS: list[Any] = [None, 0, -1, 3.5, True, "", "x", "wait", "{missing}", [], [1, "a"], {}, {"a": None},
-                           {"sequence": []}, "estop and", "success", 1e308]
+REPLACEMENTS: list[Any] = [
+    None,
+    0,
+    -1,
+    3.5,
+    True,
+    "",
+    "x",
+    "wait",
+    "{missing}",
+    [],
+    [1, "a"],
+    {},
+    {"a": None},
+    {"sequence": []},
+    "estop and",
+    "success",
+    1e308,
+]
 
 
 def paths(data: Any, prefix: tuple = ()) -> list[tuple]:

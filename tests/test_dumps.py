@@ -1,0 +1,146 @@
+"""`botstage tree` and `botstage machine` in every format for every mission."""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import xml.etree.ElementTree as ET
+import zlib
+from pathlib import Path
+
+import pytest
+
+from behaviors.render import MACHINE_FORMATS, TREE_FORMATS
+from missions.check import check
+from tests.test_cli import botstage
+from tests.tools import require
+
+MISSIONS = sorted(Path("missions").glob("*.yaml"))
+
+
+def parse_png(data: bytes) -> tuple[int, int]:
+    """Walk every chunk, checking each CRC; returns the image size."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    position, size, seen_end = 8, None, False
+    while position < len(data):
+        (length,) = struct.unpack(">I", data[position : position + 4])
+        kind = data[position + 4 : position + 8]
+        body = data[position + 8 : position + 8 + length]
+        (crc,) = struct.unpack(">I", data[position + 8 + length : position + 12 + length])
+        assert zlib.crc32(kind + body) == crc, f"bad CRC in {kind!r}"
+        if kind == b"IHDR":
+            size = struct.unpack(">II", body[:8])
+        seen_end = kind == b"IEND"
+        position += 12 + length
+    assert seen_end and size is not None
+    return size
+
+
+def check_output(fmt: str, data: bytes) -> None:
+    assert data
+    if fmt == "svg":
+        root = ET.fromstring(data)
+        assert root.tag == "{http://www.w3.org/2000/svg}svg"
+        assert len(list(root.iter())) > 10
+    elif fmt == "png":
+        width, height = parse_png(data)
+        assert width > 50 and height > 50
+    elif fmt == "json":
+        assert json.loads(data)["children"]
+    elif fmt == "mermaid":
+        assert data.startswith(b"flowchart TD\n") and b"-->" in data
+    elif fmt == "dot":
+        assert data.startswith(b"digraph botstage {") and data.rstrip().endswith(b"}")
+    else:
+        assert len(data.decode().splitlines()) > 3
+
+
+@pytest.mark.parametrize("mission", MISSIONS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("fmt", TREE_FORMATS)
+def test_tree_in_every_format(tmp_path: Path, mission: Path, fmt: str) -> None:
+    if fmt in ("svg", "png"):
+        require("dot", "graphviz")
+    out = tmp_path / f"picture.{fmt}"
+    result = botstage("tree", str(mission), "--format", fmt, "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    check_output(fmt, out.read_bytes())
+
+
+@pytest.mark.parametrize("mission", [m for m in MISSIONS if check(m).mission.machine is not None], ids=lambda p: p.stem)
+@pytest.mark.parametrize("fmt", MACHINE_FORMATS)
+def test_machine_in_every_format(tmp_path: Path, mission: Path, fmt: str) -> None:
+    if fmt in ("svg", "png"):
+        require("dot", "graphviz")
+    out = tmp_path / f"machine.{fmt}"
+    result = botstage("machine", str(mission), "--format", fmt, "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    check_output(fmt, out.read_bytes())
+
+
+def test_a_machine_with_trees_is_one_picture_of_clusters() -> None:
+    dot = botstage("machine", "missions/hello.yaml", "--format", "dot").stdout
+    assert dot.count("subgraph cluster_") == 6  # machine, 2 states, nested machine, 2 nested states
+    assert 'label="wait\\nduration=2.0"' in dot
+    assert 'label="success"' in dot and 'label="preempt: estop"' in dot
+
+
+def test_machine_of_a_mission_without_one() -> None:
+    result = botstage("machine", "missions/tree_demo.yaml")
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: missions/tree_demo.yaml has no machine")
+
+
+def test_labels_show_bindings_and_decorators() -> None:
+    text = botstage("tree", "missions/tree_demo.yaml", "--format", "ascii").stdout
+    assert "wait  duration={pause}" in text
+    assert 'set  key="first_greeted"  value=true' in text
+    assert "patrol: force success" in text and "timeout 5 s" in text and "while battery_pct > 20" in text
+
+
+def test_trace_colours_nodes_by_status_at_a_tick(tmp_path: Path) -> None:
+    assert botstage("run", "-q", "--out", str(tmp_path / "run")).returncode == 0
+    trace = str(tmp_path / "run" / "trace.jsonl")
+    text = botstage("tree", "--trace", trace, "--at", "100").stdout
+    assert "state working  timeout 30 s  finished → done, timeout → done  [ACTIVE]" in text
+    assert "wait  duration=4.0  [RUNNING]" in text
+    assert "state greeting" in text and "state greeting  success → working, failure → stopped  [ACTIVE]" not in text
+    dot = botstage("tree", "--trace", trace, "--at", "100", "--format", "dot").stdout
+    assert "#f0ad4e" in dot and "#5cb85c" in dot
+    mermaid = botstage("tree", "--trace", trace, "--at", "100", "--format", "mermaid").stdout
+    assert "classDef running fill:#f0ad4e" in mermaid
+
+
+def test_without_graphviz_one_line_and_a_suggestion(tmp_path: Path) -> None:
+    empty = tmp_path / "bin"
+    empty.mkdir()
+    import shutil
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PATH": str(empty)}
+    exe = shutil.which("botstage")
+    command = [exe] if exe else [sys.executable, "-c", "from missions.cli import app; app()"]
+    result = subprocess.run(
+        [*command, "tree", "--format", "svg", "-o", str(tmp_path / "x.svg")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1
+    assert "Graphviz's `dot` is not installed" in result.stderr and "--format mermaid" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_bad_arguments_are_clear(tmp_path: Path) -> None:
+    result = botstage("tree", "--format", "gif")
+    assert result.returncode == 2 and "unknown format 'gif'" in result.stderr
+    result = botstage("tree", "missions/hello.yaml", "--tree", "nope")
+    assert result.returncode == 2 and "has no tree 'nope' (trees: greet, patrol)" in result.stderr
+    (tmp_path / "t.jsonl").write_text("not json\n")
+    result = botstage("tree", "--trace", str(tmp_path / "t.jsonl"))
+    assert result.returncode == 2 and "cannot read trace" in result.stderr
+    result = botstage("tree", "--format", "png")
+    assert result.returncode == 2 and "png is binary" in result.stderr
