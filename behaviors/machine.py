@@ -167,6 +167,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
         for content in self._contents.values():
             content.parent = self  # what runs in a state sits under the machine (for preemption order)
         self._watch = self._timed or any(items for _, items in self._scopes)
+        self._kinds = {p: i.kind for p, i in plan.states.items()}
         self._machine = self._build_hsm()
         self._trigger = partial(self._machine.trigger_event, self.model)
 
@@ -307,7 +308,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                 yield from content.tick()
                 if content.status is Status.RUNNING:
                     break
-                name, reason = outcome_of(content, self.plan.states[leaf].kind)
+                name, reason = outcome_of(content, self._kinds[leaf])
                 self._on_outcome(leaf, name, reason)
             if self._error is not None:
                 self._fail()
