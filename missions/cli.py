@@ -117,11 +117,13 @@ def run(
         f"[bold]{s['mission']}[/]: outcome [bold]{result.outcome}[/]"
         + (f" ({result.reason})" if result.reason else ""),
         highlight=False,
+        soft_wrap=True,
     )
     console.print(
         f"{s['ticks']} ticks, {s['sim_time_s']:g} s mission time in {s['wall_time_s']:g} s wall time; "
         f"report {result.folder / 'report.html'}",
         highlight=False,
+        soft_wrap=True,
     )
     if result.outcome == "interrupted":
         raise typer.Exit(130)
