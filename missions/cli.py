@@ -207,6 +207,40 @@ def machine(
     _picture(mission, None, True, fmt, output, trace, at)
 
 
+@app.command("test")
+def test_scenarios(
+    paths: list[Path] = typer.Argument(None, help="scenario files or folders (default: missions/scenarios)"),
+) -> None:
+    """Run scenario tests without pytest; a failure prints its readable report. Exit 1 if any fails."""
+    import tempfile
+
+    from missions.scenario import load_scenario, run_scenario
+
+    roots = paths or [Path("missions/scenarios")]
+    files: list[Path] = []
+    for root in roots:
+        if root.is_dir():
+            files += sorted(p for p in root.rglob("*.y*ml") if p.suffix in (".yaml", ".yml"))
+        elif root.exists():
+            files.append(root)
+        else:
+            raise _fail(f"error: {root} does not exist", 2)
+    if not files:
+        raise _fail(f"error: no scenario files under {', '.join(map(str, roots))}", 2)
+    failed = 0
+    for path in files:
+        result = run_scenario(load_scenario(path), Path(tempfile.mkdtemp(prefix=f"botstage-{path.stem}-")))
+        if result.passed:
+            console.print(f"[green]PASS[/] {path}", highlight=False, soft_wrap=True)
+        else:
+            failed += 1
+            console.print(f"[red]FAIL[/] {path}", highlight=False, soft_wrap=True)
+            _stderr([result.report(), ""])
+    console.print(f"{len(files) - failed} passed, {failed} failed", highlight=False)
+    if failed:
+        raise typer.Exit(1)
+
+
 @app.command()
 def skills() -> None:
     """List the skills the registry finds (built-in and plugins) with their contracts."""

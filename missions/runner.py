@@ -12,7 +12,7 @@ import time
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -27,6 +27,7 @@ from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path
 from missions.loader import Problem
 from robots.clock import Clock, SimClock, WallClock
+from skills.registry import Registry
 
 BACKENDS = ("sim", "hardware")
 WALL_CLOCK_FIELDS = ("wall_time_s", "overruns")
@@ -42,12 +43,21 @@ class RunError(Exception):
     """The mission is valid but cannot run as asked (for example, no hardware for it)."""
 
 
+class StopRun(Exception):
+    """Raised by a ``before_tick`` hook to end a run early (a scenario's `never` condition held)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
 @dataclass
 class RunResult:
     outcome: str
     reason: str
     folder: Path
     summary: dict[str, Any]
+    blackboard: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -75,8 +85,16 @@ def run(
     out: Path | None = None,
     progress: ProgressCallback | None = None,
     progress_interval_s: float = 0.1,
+    registry: Registry | None = None,
+    blackboard: dict[str, Any] | None = None,
+    before_tick: Callable[[Engine], None] | None = None,
 ) -> RunResult:
-    checked = check(path)
+    """Check and run a mission.
+
+    Scenario tests pass a ``registry`` with mocks, ``blackboard`` overrides of initial values and
+    a ``before_tick`` hook (scripted events, `never` conditions); a hook may raise ``StopRun``.
+    """
+    checked = check(path, registry)
     if not checked.ok:
         raise MissionInvalid(checked.problems)
     mission = checked.mission
@@ -96,19 +114,26 @@ def run(
     clock: Clock = WallClock(mission.rate_hz) if realtime else SimClock(mission.rate_hz)
     started = time.perf_counter()
     interrupted = False
+    stopped = ""
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
-        engine = Engine(clock=clock, seed=seed, trace=Trace(clock, sink, keep=False))
+        engine = Engine(clock=clock, seed=seed, trace=Trace(clock, sink, keep=False), registry=registry)
         try:
-            root = build(engine, checked)
+            root = build(engine, checked, blackboard)
             engine.set_root(root)
             snapshot = _progress_snapshot(engine, root, mission.name, started)
             try:
                 with _sigterm_as_interrupt():
-                    _loop(engine, until, progress, snapshot, progress_interval_s)
+                    _loop(engine, until, progress, snapshot, progress_interval_s, before_tick)
             except KeyboardInterrupt:
                 interrupted = True
                 engine.halt("interrupted by the operator")
+            except StopRun as stop:
+                stopped = stop.reason
+                engine.halt(stop.reason)
             outcome, reason = _outcome(engine, root, until, interrupted)
+            if stopped:
+                outcome, reason = "stopped_by_test", stopped
+            final_blackboard = engine.blackboard.snapshot()
             counters = {key: jsonable(engine.blackboard.get(key, None)) for key in mission.counters}
         finally:
             engine.close("mission ended")  # cancels whatever still runs: motors stop
@@ -132,10 +157,10 @@ def run(
     summary["artefacts"] = sorted({*summary["artefacts"], "report.html"})
     write_report(folder, checked, summary)
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    return RunResult(outcome, reason, folder, summary)
+    return RunResult(outcome, reason, folder, summary, final_blackboard)
 
 
-def build(engine: Engine, checked: Checked) -> py_trees.behaviour.Behaviour:
+def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> py_trees.behaviour.Behaviour:
     """Declare the mission's keys, set its initial values and build what runs."""
     mission = checked.mission
     assert mission is not None
@@ -143,7 +168,7 @@ def build(engine: Engine, checked: Checked) -> py_trees.behaviour.Behaviour:
         engine.blackboard.declare(key, tp)
     for key, value in checked.key_defaults.items():
         engine.blackboard.set(key, value, writer="init")
-    for key, value in mission.blackboard.items():
+    for key, value in {**mission.blackboard, **(overrides or {})}.items():
         engine.blackboard.set(key, value, writer="init")
     builder = engine.builder(mission.trees, mission.machines, mission.skill_params)
     return build_root(builder, mission, root_spec_path(mission))
@@ -168,10 +193,13 @@ def _loop(
     progress: ProgressCallback | None,
     snapshot: Callable[[], Progress],
     interval_s: float,
+    before_tick: Callable[[Engine], None] | None = None,
 ) -> None:
     clock = engine.clock
     next_report = 0.0
     while until is None or clock.now() < until - 1e-9:
+        if before_tick is not None:
+            before_tick(engine)
         status = engine.tick()
         if progress is not None:
             now = time.monotonic()

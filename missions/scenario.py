@@ -1,0 +1,448 @@
+"""Scenario tests: run a mission with mocked skills, scripted events and expectations.
+
+A scenario file (YAML, usually `missions/scenarios/<mission>/<name>.yaml`)::
+
+    mission: ../../hello.yaml          # relative to the scenario file
+    seed: 7
+    until: 60
+    mocks:
+      wait:                            # a script of calls, in order; the last one repeats
+        - {outcome: success, duration: 2}
+        - {outcome: failure, reason: "motor stalled"}
+      log: {always: {outcome: success}}
+      check: {cycle: [{outcome: success}, {outcome: failure}]}
+      detect: {probability: {success: 0.7, no_crowd: 0.3}}   # seeded: same every run
+    mock_all: false                    # true: every skill not listed succeeds at once
+    blackboard: {battery_pct: 15}      # overrides of the mission's initial values
+    events:
+      - {t: 12, set: {estop: true}}
+    expect:
+      outcome: stopped
+      states: [greeting, working/patrol, stopped]       # exact
+      states_in_order: [greeting, stopped]              # or an ordered subsequence
+      calls: [{skill: log, inputs: {message: "hello from botstage"}}]
+      blackboard: {greeted: true}
+      within: [{from: {state: working/patrol}, to: {state: stopped}, seconds: 15}]
+      never: ["estop and greeted == false"]
+
+Mocks have the real skill's ports and outcomes: a scripted outcome or output the skill does not
+declare is a located validation error, so trees and machines cannot tell the difference.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from behaviors.blackboard import BlackboardError
+from behaviors.builder import did_you_mean
+from behaviors.engine import Engine
+from missions.loader import Loaded, Location, Problem, load
+from missions.runner import MissionInvalid, RunError, StopRun, run
+from skills.base import Outcome, Skill, SkillContext, SkillRun
+from skills.expression import EvaluationError, ExpressionError, compile_expression
+from skills.registry import Registry
+
+
+class Call(BaseModel):
+    """One scripted call of a mocked skill."""
+
+    model_config = ConfigDict(extra="forbid")
+    outcome: str = "success"
+    reason: str = ""
+    outputs: dict[str, Any] = Field(default_factory=dict)
+    duration: float = Field(default=0.0, ge=0, description="sim seconds RUNNING before the outcome")
+    raises: str | None = Field(default=None, description="raise an error with this message instead")
+
+
+class Rule(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    always: Call | None = None
+    cycle: list[Call] | None = None
+    probability: dict[str, float] | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> Rule:
+        given = [k for k in ("always", "cycle", "probability") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("a rule is exactly one of always, cycle, probability")
+        if self.cycle is not None and not self.cycle:
+            raise ValueError("cycle needs at least one call")
+        weights = self.probability
+        if weights is not None and (not weights or any(p < 0 for p in weights.values())):
+            raise ValueError("probability maps outcomes to non-negative weights")
+        return self
+
+
+class Event(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    t: float = Field(ge=0, description="sim seconds")
+    set: dict[str, Any]
+
+
+class Span(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    from_: dict[str, Any] = Field(alias="from")
+    to: dict[str, Any]
+    seconds: float = Field(gt=0)
+
+
+class CallExpectation(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    skill: str
+    inputs: dict[str, Any] = Field(default_factory=dict)
+    times: int | None = Field(default=None, ge=0)
+
+
+class Expect(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    outcome: str | None = None
+    states: list[str] | None = None
+    states_in_order: list[str] | None = None
+    calls: list[CallExpectation] = Field(default_factory=list)
+    blackboard: dict[str, Any] = Field(default_factory=dict)
+    within: list[Span] = Field(default_factory=list)
+    never: list[str] = Field(default_factory=list)
+
+
+class ScenarioSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    mission: str
+    description: str = ""
+    seed: int | None = None
+    until: float | None = Field(default=None, gt=0)
+    mocks: dict[str, list[Call] | Rule] = Field(default_factory=dict)
+    mock_all: bool = False
+    blackboard: dict[str, Any] = Field(default_factory=dict)
+    events: list[Event] = Field(default_factory=list)
+    expect: Expect = Field(default_factory=Expect)
+
+
+# -- mocks --------------------------------------------------------------------------------
+
+
+def mock_of(real: type[Skill], script: list[Call] | Rule) -> type[Skill]:
+    """A skill with ``real``'s contract whose runs follow ``script``.
+
+    Calls are counted per mock class, across every node that uses the skill, in tick order:
+    deterministic. A new class is made for every scenario run, so counts start at zero.
+    """
+    calls = {"n": 0}
+
+    def next_call(ctx: SkillContext) -> Call:
+        n = calls["n"]
+        calls["n"] += 1
+        if isinstance(script, list):
+            return script[min(n, len(script) - 1)]
+        if script.always is not None:
+            return script.always
+        if script.cycle is not None:
+            return script.cycle[n % len(script.cycle)]
+        assert script.probability is not None
+        pick, total = ctx.rng.random() * sum(script.probability.values()), 0.0
+        for outcome, weight in script.probability.items():
+            total += weight
+            if pick < total:
+                return Call(outcome=outcome)
+        return Call(outcome=next(iter(script.probability)))
+
+    def run(self: Skill, ctx: SkillContext, **inputs: Any) -> SkillRun:
+        call = next_call(ctx)
+        deadline = ctx.clock.now() + call.duration - 1e-9
+        while ctx.clock.now() < deadline:
+            yield
+        if call.raises is not None:
+            raise RuntimeError(call.raises)
+        return Outcome(call.outcome, call.reason, call.outputs)
+
+    return type(
+        f"Mock_{real.__name__}",
+        (Skill,),
+        {
+            "name": real.name,
+            "description": f"mock of {real.name}",
+            "kind": real.kind,
+            "inputs": real.inputs,
+            "outputs": real.outputs,
+            "outcomes": tuple(real.all_outcomes - {"success", "failure"}),
+            "Params": real.Params,
+            "run": run,
+            "__module__": __name__,
+        },
+    )
+
+
+# -- loading ------------------------------------------------------------------------------
+
+
+@dataclass
+class Scenario:
+    path: Path
+    spec: ScenarioSpec | None
+    problems: list[Problem]
+    loaded: Loaded
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+    @property
+    def mission_path(self) -> Path:
+        assert self.spec is not None
+        return (self.path.parent / self.spec.mission).resolve()
+
+
+def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenario:
+    """Load and check a scenario file; problems are located, never raised."""
+    path = Path(path)
+    loaded = load(path)
+    problems = list(loaded.problems)
+    if loaded.data is None:
+        return Scenario(path, None, problems, loaded)
+
+    def at(where: tuple[str | int, ...], message: str, hint: str = "") -> None:
+        problems.append(Problem(loaded.locations.find(where), message, hint))
+
+    try:
+        spec = ScenarioSpec.model_validate(loaded.data)
+    except ValidationError as exc:
+        for error in exc.errors():
+            raw = tuple(error["loc"])
+            if raw[:1] == ("mocks",) and len(raw) > 2:
+                # a mock is a list of calls or a rule: report only the branch the author wrote
+                written = (
+                    loaded.data.get("mocks", {}).get(raw[1]) if isinstance(loaded.data.get("mocks"), dict) else None
+                )
+                if str(raw[2]).startswith("list[") != isinstance(written, list):
+                    continue
+                raw = raw[:2] + raw[3:]
+            loc = raw
+            if error["type"] == "extra_forbidden":
+                at(loc, f"unknown key {loc[-1]!r}")
+            else:
+                at(loc, f"{'.'.join(map(str, loc))}: {error['msg']}")
+        return Scenario(path, None, _unique(problems), loaded)
+    registry = registry or Registry.default()
+    mission = (path.parent / spec.mission).resolve()
+    if not mission.exists():
+        at(("mission",), f"mission file {spec.mission!r} does not exist", f"looked for {mission}")
+    for name, script in spec.mocks.items():
+        if name not in registry:
+            at(("mocks", name), f"unknown skill {name!r}", did_you_mean(name, registry))
+            continue
+        real = registry.get(name)
+        calls = script if isinstance(script, list) else [script.always] if script.always else script.cycle or []
+        base: tuple[str | int, ...] = ("mocks", name)
+        for index, call in enumerate(calls):
+            where = base + ((index,) if isinstance(script, list) else ("cycle", index) if script.cycle else ("always",))
+            _check_call(real, call, where, at)
+        if isinstance(script, Rule) and script.probability:
+            for outcome in script.probability:
+                if outcome not in real.all_outcomes:
+                    at(
+                        base + ("probability", outcome),
+                        f"skill {name!r} has no outcome {outcome!r}",
+                        "declared: " + ", ".join(sorted(real.all_outcomes)),
+                    )
+    for index, condition in enumerate(spec.expect.never):
+        try:
+            compile_expression(condition)
+        except ExpressionError as exc:
+            at(("expect", "never", index), str(exc))
+    return Scenario(path, spec, _unique(problems), loaded)
+
+
+def _check_call(real: type[Skill], call: Call, where: tuple[str | int, ...], at: Any) -> None:
+    if call.outcome not in real.all_outcomes:
+        at(
+            where + ("outcome",),
+            f"skill {real.name!r} has no outcome {call.outcome!r}",
+            did_you_mean(call.outcome, real.all_outcomes) or "declared: " + ", ".join(sorted(real.all_outcomes)),
+        )
+    for port in call.outputs:
+        if port not in real.outputs:
+            at(
+                where + ("outputs", port),
+                f"skill {real.name!r} has no output {port!r}",
+                did_you_mean(port, real.outputs) or "declared: " + (", ".join(real.outputs) or "none"),
+            )
+
+
+def _unique(problems: list[Problem]) -> list[Problem]:
+    return sorted({(p.location, p.message): p for p in problems}.values(), key=lambda p: (p.location, p.message))
+
+
+# -- running and judging --------------------------------------------------------------------
+
+
+@dataclass
+class Result:
+    scenario: Scenario
+    passed: bool
+    failures: list[str] = field(default_factory=list)
+    folder: Path | None = None
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+    def report(self) -> str:
+        """What a failing scenario prints: each failed expectation, then where the run is."""
+        lines = [f"scenario {self.scenario.path} failed:"]
+        lines += self.failures
+        if self.folder is not None:
+            lines.append(f"run folder: {self.folder}")
+        return "\n".join(lines)
+
+
+def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None) -> Result:
+    if scenario.problems or scenario.spec is None:
+        return Result(scenario, False, [str(p) for p in scenario.problems])
+    spec = scenario.spec
+    base = registry or Registry.default()
+    mocked = Registry()
+    for name in base:
+        real = base.get(name)
+        if name in spec.mocks:
+            mocked.register(mock_of(real, spec.mocks[name]))
+        elif spec.mock_all:
+            mocked.register(mock_of(real, Rule(always=Call())))
+        else:
+            mocked.register(real)
+    never = [compile_expression(c) for c in spec.expect.never]
+    pending = sorted(spec.events, key=lambda e: e.t)
+
+    def before_tick(engine: Engine) -> None:
+        now = engine.clock.now()
+        while pending and pending[0].t <= now + 1e-9:
+            for key, value in pending.pop(0).set.items():
+                engine.blackboard.set(key, value, writer="scenario")
+        for condition in never:
+            try:
+                held = condition.test(engine.blackboard.get)
+            except (BlackboardError, EvaluationError):
+                continue  # a key not written yet: the condition cannot hold
+            if held:
+                raise StopRun(f"never-condition {condition.source!r} held at t={now:g} s")
+
+    try:
+        result = run(
+            scenario.mission_path,
+            seed=spec.seed,
+            until=spec.until,
+            out=out,
+            registry=mocked,
+            blackboard=spec.blackboard,
+            before_tick=before_tick,
+        )
+    except MissionInvalid as exc:
+        return Result(scenario, False, ["the mission is invalid:", *(str(p) for p in exc.problems)])
+    except RunError as exc:
+        return Result(scenario, False, [f"the mission cannot run: {exc}"])
+    events = [json.loads(line) for line in (result.folder / "trace.jsonl").read_text(encoding="utf-8").splitlines()]
+    failures = list(_judge(spec.expect, result.summary, result.blackboard, result.reason, events))
+    return Result(scenario, not failures, failures, result.folder, events)
+
+
+def _judge(
+    expect: Expect, summary: dict[str, Any], blackboard: dict[str, Any], reason: str, events: list[dict[str, Any]]
+) -> Iterator[str]:
+    if summary["outcome"] == "stopped_by_test":
+        yield reason
+    if expect.outcome is not None and summary["outcome"] != expect.outcome:
+        yield f"outcome: expected {expect.outcome!r}, got {summary['outcome']!r}" + (f" ({reason})" if reason else "")
+    actual = summary["states_visited"]
+    if expect.states is not None and actual != expect.states:
+        yield "states: expected (-) vs actual (+):\n" + _diff(expect.states, actual)
+        yield _excerpt(events, _divergence(expect.states, actual))
+    if expect.states_in_order is not None:
+        missing = _first_missing(expect.states_in_order, actual)
+        if missing is not None:
+            yield (
+                f"states_in_order: {expect.states_in_order[missing]!r} (expected #{missing + 1}) never came after "
+                f"{expect.states_in_order[missing - 1]!r}"
+                if missing
+                else f"states_in_order: {expect.states_in_order[0]!r} was never entered"
+            ) + f"\n  actual: {actual}"
+    starts = [e for e in events if e["ev"] == "skill_start"]
+    for call in expect.calls:
+        matching = [e for e in starts if e["skill"] == call.skill and _partial(call.inputs, e["inputs"])]
+        if call.times is not None and len(matching) != call.times:
+            yield f"calls: {call.skill} {call.inputs or ''} expected {call.times} time(s), called {len(matching)}"
+        elif call.times is None and not matching:
+            seen = [e["inputs"] for e in starts if e["skill"] == call.skill]
+            yield f"calls: {call.skill} was never called with {call.inputs}" + (
+                f"; it was called with {seen[:5]}" if seen else "; it was never called"
+            )
+    for key, value in expect.blackboard.items():
+        if key not in blackboard:
+            yield f"blackboard: {key!r} was never written (expected {value!r})"
+        elif blackboard[key] != value:
+            yield f"blackboard: {key!r} expected {value!r}, got {blackboard[key]!r}"
+    for span in expect.within:
+        start = next((e for e in events if _matches(span.from_, e)), None)
+        if start is None:
+            yield f"within: no event matched from={span.from_}"
+            continue
+        end = next((e for e in events if e["t"] >= start["t"] and e is not start and _matches(span.to, e)), None)
+        if end is None:
+            yield f"within: after {span.from_} at t={start['t']:g} s, no event matched to={span.to}"
+        elif end["t"] - start["t"] > span.seconds + 1e-9:
+            yield (
+                f"within: {span.to} came {end['t'] - start['t']:g} s after {span.from_} "
+                f"(t={start['t']:g} s), more than {span.seconds:g} s"
+            )
+
+
+def _partial(expected: dict[str, Any], actual: dict[str, Any]) -> bool:
+    return all(k in actual and actual[k] == v for k, v in expected.items())
+
+
+def _matches(matcher: dict[str, Any], event: dict[str, Any]) -> bool:
+    """A matcher names event fields; `state: X` means entering state X."""
+    for key, value in matcher.items():
+        if key == "state":
+            if event["ev"] != "transition" or event["dest"] != value:
+                return False
+        elif event.get(key) != value:
+            return False
+    return True
+
+
+def _first_missing(wanted: list[str], actual: list[str]) -> int | None:
+    position = 0
+    for index, state in enumerate(wanted):
+        try:
+            position = actual.index(state, position) + 1
+        except ValueError:
+            return index
+    return None
+
+
+def _diff(expected: list[str], actual: list[str]) -> str:
+    return "\n".join("  " + line for line in difflib.ndiff(expected, actual) if not line.startswith("?"))
+
+
+def _divergence(expected: list[str], actual: list[str]) -> int:
+    for index, (a, b) in enumerate(zip(expected, actual, strict=False)):
+        if a != b:
+            return index
+    return min(len(expected), len(actual))
+
+
+def _excerpt(events: list[dict[str, Any]], index: int) -> str:
+    """The trace around the transition where the state sequence first diverged."""
+    transitions = [i for i, e in enumerate(events) if e["ev"] == "transition" and e["dest"]]
+    if not transitions:
+        return "trace: no state was entered"
+    at = transitions[min(index, len(transitions) - 1)]
+    shown = [e for e in events[max(0, at - 6) : at + 4] if e["ev"] not in ("tick", "tick_end")]
+    return "trace around the first divergence:\n" + "\n".join("  " + json.dumps(e) for e in shown)
+
+
+def location(scenario: Scenario) -> Location:
+    assert scenario.loaded.locations.root is not None
+    return scenario.loaded.locations.root

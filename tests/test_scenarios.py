@@ -1,0 +1,145 @@
+"""Scenario tests: mocks, expectations, validation, the pytest plugin and `botstage test`."""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from missions.scenario import load_scenario, mock_of, run_scenario
+from skills.registry import Registry
+from tests.test_cli import botstage
+
+pytest_plugins = ["pytester"]
+HELLO = Path("missions/hello.yaml").resolve()
+
+
+def scenario(tmp_path: Path, text: str):
+    path = tmp_path / "s.yaml"
+    path.write_text(f"mission: {HELLO}\n" + textwrap.dedent(text))
+    return load_scenario(path)
+
+
+def problems(tmp_path: Path, text: str) -> list[str]:
+    return [str(p).replace(str(tmp_path) + "/", "") for p in scenario(tmp_path, text).problems]
+
+
+def test_a_wrong_expectation_fails_with_a_readable_diff(pytester: pytest.Pytester) -> None:
+    folder = pytester.mkdir("scenarios")
+    shutil.copy(HELLO, pytester.path / "hello.yaml")
+    (folder / "estop.yaml").write_text(
+        textwrap.dedent("""\
+        mission: ../hello.yaml
+        events: [{t: 5, set: {estop: true}}]
+        expect:
+          outcome: done
+          states: [greeting, working/rest, stopped]
+    """)
+    )
+    result = pytester.runpytest("scenarios")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*scenario*estop.yaml failed:",
+            "outcome: expected 'done', got 'stopped' (preempted: 'estop' holds)",
+            "states: expected (-) vs actual (+):",
+            "    greeting",
+            "  - working/rest",
+            "  + working/patrol",
+            "    stopped",
+            "trace around the first divergence:",
+            '*"ev": "transition"*"dest": "working/patrol"*',
+            "run folder: *botstage-scenario-estop-*",
+        ]
+    )
+
+
+def test_mocks_keep_the_real_contract() -> None:
+    real = Registry.builtin().get("wait")
+    mock = mock_of(real, [])
+    assert (mock.name, mock.inputs, mock.outputs, mock.all_outcomes, mock.kind) == (
+        real.name,
+        real.inputs,
+        real.outputs,
+        real.all_outcomes,
+        real.kind,
+    )
+
+
+def test_undeclared_outcomes_and_outputs_are_located_errors(tmp_path: Path) -> None:
+    assert problems(
+        tmp_path,
+        """\
+        mocks:
+          wait: [{outcome: success}, {outcome: crowd_found}]
+          check: {always: {outputs: {value: 1}}}
+          log: {probability: {success: 0.5, maybe: 0.5}}
+          wiat: [{}]
+        expect: {never: ["estop and"]}
+    """,
+    ) == [
+        "s.yaml:3:31: error: skill 'wait' has no outcome 'crowd_found' (declared: failure, success)",
+        "s.yaml:4:30: error: skill 'check' has no output 'value' (declared: none)",
+        "s.yaml:5:37: error: skill 'log' has no outcome 'maybe' (declared: failure, success)",
+        "s.yaml:6:3: error: unknown skill 'wiat' (did you mean 'wait'?)",
+        "s.yaml:7:18: error: syntax error: invalid syntax in 'estop and' (column 1)",
+    ]
+    assert problems(tmp_path, "mocks: {wait: [{outcome: success, durations: 2}]}\nexpct: {}\n") == [
+        "s.yaml:2:35: error: unknown key 'durations'",
+        "s.yaml:3:1: error: unknown key 'expct'",
+    ]
+
+
+def test_a_bad_scenario_is_a_failure_with_its_problems(tmp_path: Path) -> None:
+    loaded = scenario(tmp_path, "mocks: {wait: [{outcome: nope}]}\n")
+    result = run_scenario(loaded, tmp_path / "run")
+    assert not result.passed and "has no outcome 'nope'" in result.failures[0]
+
+
+def test_seeded_probability_mocks_are_deterministic(tmp_path: Path) -> None:
+    text = "seed: 3\nmocks:\n  check: {probability: {success: 0.7, failure: 0.3}}\n"
+    traces = []
+    for name in ("a", "b"):
+        result = run_scenario(scenario(tmp_path, text), tmp_path / name)
+        traces.append((tmp_path / name / "trace.jsonl").read_bytes())
+        outcomes = [e["outcome"] for e in result.events if e["ev"] == "skill_outcome" and e["skill"] == "check"]
+    assert traces[0] == traces[1]
+    assert "failure" in outcomes  # the rule really drew both outcomes
+
+
+def test_never_conditions_stop_the_run_and_fail(tmp_path: Path) -> None:
+    result = run_scenario(scenario(tmp_path, "expect: {never: ['greeted']}\n"), tmp_path / "run")
+    assert not result.passed
+    assert result.failures == ["never-condition 'greeted' held at t=2.1 s"]
+
+
+def test_partial_call_matches_and_counts(tmp_path: Path) -> None:
+    text = """\
+        expect:
+          calls:
+            - {skill: wait, inputs: {duration: 2.0}, times: 1}
+            - {skill: log, inputs: {message: bye}}
+            - {skill: set, times: 2}
+          blackboard: {greeted: false, ghost: 1}
+    """
+    result = run_scenario(scenario(tmp_path, text), tmp_path / "run")
+    assert result.failures == [
+        "calls: log was never called with {'message': 'bye'}; it was called with [{'message': 'hello from botstage'}]",
+        "calls: set  expected 2 time(s), called 1",
+        "blackboard: 'greeted' expected False, got True",
+        "blackboard: 'ghost' was never written (expected 1)",
+    ]
+
+
+def test_botstage_test_runs_a_suite_and_fails_on_a_bad_scenario(tmp_path: Path) -> None:
+    good = botstage("test", "missions/scenarios/hello")
+    assert good.returncode == 0 and "6 passed, 0 failed" in good.stdout
+    bad = tmp_path / "scenarios"
+    bad.mkdir()
+    (bad / "wrong.yaml").write_text(f"mission: {HELLO}\nexpect: {{outcome: stopped}}\n")
+    result = botstage("test", str(bad))
+    assert result.returncode == 1
+    assert "0 passed, 1 failed" in result.stdout
+    assert "outcome: expected 'stopped', got 'done'" in result.stderr
