@@ -24,7 +24,14 @@ from behaviors.skill_behaviour import KeyRef, SkillBehaviour
 
 TREE_FORMATS = ("ascii", "unicode", "dot", "svg", "png", "mermaid", "json")
 MACHINE_FORMATS = ("ascii", "dot", "svg", "png", "mermaid")
-COLOURS = {"RUNNING": "#f0ad4e", "SUCCESS": "#5cb85c", "FAILURE": "#d9534f", "INVALID": "#dddddd", "ACTIVE": "#f0ad4e"}
+COLOURS = {
+    "UNTESTED": "#eeeeee,stroke-dasharray:4 3,color:#999999",
+    "RUNNING": "#f0ad4e",
+    "SUCCESS": "#5cb85c",
+    "FAILURE": "#d9534f",
+    "INVALID": "#dddddd",
+    "ACTIVE": "#f0ad4e",
+}
 
 
 class GraphvizMissing(RuntimeError):
@@ -41,6 +48,9 @@ class Statuses:
 
     nodes: dict[str, str] = field(default_factory=dict)  # node path -> RUNNING/SUCCESS/FAILURE/INVALID
     states: dict[str, str] = field(default_factory=dict)  # machine path -> active state path
+    # from a coverage.json: nodes and states no test reached, transitions ("state:outcome") none took
+    untested: set[str] = field(default_factory=set)
+    untested_transitions: set[str] = field(default_factory=set)
 
 
 def statuses_at(events: Iterable[Mapping[str, Any]], tick: int) -> Statuses:
@@ -74,6 +84,7 @@ class Item:
     transitions: list[tuple[str, str, str]] = field(default_factory=list)  # (outcome, target path, guard)
     initial: str = ""
     preemptions: list[tuple[str, str]] = field(default_factory=list)  # (condition, target path)
+    machine: str = ""  # for machine levels: the path of the machine they belong to
 
 
 def _value(value: Any) -> str:
@@ -143,6 +154,7 @@ def describe_machine(plan: MachinePlan, path: str, name: str) -> Item:
 
 
 def _fill_level(item: Item, plan: MachinePlan, level: Any, machine_path: str) -> None:
+    item.machine = machine_path
     item.initial = f"{machine_path}/{level.initial}"
     item.preemptions = [(cond, f"{machine_path}/{level.full(t)}") for cond, t in level.preemptions]
     for name in level.names:
@@ -177,6 +189,8 @@ def _fill_level(item: Item, plan: MachinePlan, level: Any, machine_path: str) ->
 def _status_mark(item: Item, statuses: Statuses | None) -> str:
     if statuses is None:
         return ""
+    if item.path in statuses.untested:
+        return "  [untested]"
     if item.kind == "state":
         _machine, _, _state = item.path.rpartition("/")
         active = any(
@@ -201,13 +215,20 @@ def _lines(item: Item, unicode: bool, statuses: Statuses | None) -> Iterator[str
         )
         if it.details:
             text += "  " + "  ".join(it.details)
+        untested = statuses.untested_transitions if statuses else set()
         if it.transitions:
             text += "  " + ", ".join(
-                f"{o}{' if ' + g if g else ''} {arrow} {t.rsplit('/', 1)[-1]}" for o, t, g in it.transitions
+                f"{o}{' if ' + g if g else ''} {arrow} {t.rsplit('/', 1)[-1]}"
+                + (" (untested)" if f"{it.path}:{o}" in untested else "")
+                for o, t, g in it.transitions
             )
         if it.kind == "machine" and it.initial:
             text += f"  initial {it.initial.rsplit('/', 1)[-1]}"
-            text += "".join(f"  preempt: {c} {arrow} {t.rsplit('/', 1)[-1]}" for c, t in it.preemptions)
+            text += "".join(
+                f"  preempt: {c} {arrow} {t.rsplit('/', 1)[-1]}"
+                + (" (untested)" if f"{it.machine}/preempt:{c}" in untested else "")
+                for c, t in it.preemptions
+            )
         return text.replace("→", arrow) + _status_mark(it, statuses)
 
     def walk(it: Item, prefix: str) -> Iterator[str]:
@@ -226,6 +247,8 @@ def to_text(item: Item, unicode: bool = True, statuses: Statuses | None = None) 
 
 # -- dot --------------------------------------------------------------------------------------
 
+_UNTESTED_NODE = ', style="rounded,filled,dashed", color="#999999", fontcolor="#999999"'
+_UNTESTED_EDGE = ', style=dashed, color="#999999", fontcolor="#999999"'
 _SHAPES = {
     "skill": "box",
     "condition": "ellipse",
@@ -272,7 +295,11 @@ def to_dot(item: Item, statuses: Statuses | None = None) -> str:
             return cluster(it, indent)
         label = "\n".join([it.title, *it.details])
         shape = _SHAPES.get(it.kind, "box")
-        lines.append(f'{indent}{ids(it.path)} [label={_quote(label)}, shape={shape}, fillcolor="{fill(it)}"];')
+        lines.append(
+            f'{indent}{ids(it.path)} [label={_quote(label)}, shape={shape}, fillcolor="{fill(it)}"'
+            + (_UNTESTED_NODE if it.path in untested else "")
+            + "];"
+        )
         for child in it.children:
             child_id = node(child, indent)
             edges.append(
@@ -294,7 +321,11 @@ def to_dot(item: Item, statuses: Statuses | None = None) -> str:
         if it.kind == "state" and it.details:
             label += "\n" + "\n".join(it.details)
         lines.append(f"{indent}subgraph cluster_{anchor} {{")
-        lines.append(f'{indent}  label={_quote(label)}; style="rounded,filled"; fillcolor="{colour}";')
+        style = "rounded,filled,dashed" if it.path in untested else "rounded,filled"
+        lines.append(
+            f'{indent}  label={_quote(label)}; style="{style}"; fillcolor="{colour}";'
+            + (' fontcolor="#999999"; color="#999999";' if it.path in untested else "")
+        )
         lines.append(f'{indent}  {anchor} [shape=point, width=0.05, label=""];')
         for child in it.children:
             node(child, indent + "  ")
@@ -304,20 +335,26 @@ def to_dot(item: Item, statuses: Statuses | None = None) -> str:
             lines.append(f'{indent}{start} [shape=circle, width=0.15, label="", fillcolor="#000000"];')
             edges.append(f"  {start} -> {ids(it.initial, '#anchor')} [lhead=cluster_{ids(it.initial, '#anchor')}];")
             for condition, target in it.preemptions:
+                cold = f"{it.machine}/preempt:{condition}" in untested_transitions
                 edges.append(
-                    f'  {anchor} -> {_target(target)} [style=dashed, color="#d9534f", '
-                    f"label={_quote('preempt: ' + condition)}, ltail=cluster_{anchor}];"
+                    f'  {anchor} -> {_target(target)} [style=dashed, color="{"#999999" if cold else "#d9534f"}", '
+                    f"label={_quote('preempt: ' + condition + (' (untested)' if cold else ''))}, "
+                    f"ltail=cluster_{anchor}];"
                 )
         for outcome, target, guard in it.transitions:
-            label = outcome + (f" [{guard}]" if guard else "")
+            cold = f"{it.path}:{outcome}" in untested_transitions
+            label = outcome + (f" [{guard}]" if guard else "") + (" (untested)" if cold else "")
             edges.append(
                 f"  {anchor} -> {_target(target)} [label={_quote(label)}, ltail=cluster_{anchor}"
                 + (f", lhead=cluster_{ids(target, '#anchor')}" if target in states else "")
+                + (_UNTESTED_EDGE if cold else "")
                 + "];"
             )
         return anchor
 
     states = {s.path for s in _walk(item) if s.kind == "state"}
+    untested = statuses.untested if statuses else set()
+    untested_transitions = statuses.untested_transitions if statuses else set()
 
     def _target(path: str) -> str:
         return ids(path, "#anchor") if path in states else ids(path)
@@ -392,14 +429,17 @@ def to_mermaid(item: Item, statuses: Statuses | None = None) -> str:
                 for condition, to in it.preemptions:
                     edges.append(f'  {anchor} -.->|"{text("preempt: " + condition)}"| {target(to)}')
             for outcome, to, guard in it.transitions:
-                label = outcome + (f" [{guard}]" if guard else "")
-                edges.append(f'  {anchor} -->|"{text(label)}"| {target(to)}')
+                cold = statuses is not None and f"{it.path}:{outcome}" in statuses.untested_transitions
+                label = outcome + (f" [{guard}]" if guard else "") + (" (untested)" if cold else "")
+                edges.append(f'  {anchor} {"-.->" if cold else "-->"}|"{text(label)}"| {target(to)}')
             return anchor
         open_, close = _MERMAID_SHAPES.get(it.kind, ('["', '"]'))
         lines.append(f"{indent}{ids(it.path)}{open_}{text(chr(10).join([it.title, *it.details]))}{close}")
         status = statuses.nodes.get(it.path) if statuses else None
         if status and status != "INVALID":
             classes.setdefault(status, []).append(ids(it.path))
+        if statuses is not None and it.path in statuses.untested:
+            classes.setdefault("UNTESTED", []).append(ids(it.path))
         for child in it.children:
             edges.append(f"  {ids(it.path)} --> {node(child, indent)}")
         return ids(it.path)

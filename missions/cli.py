@@ -22,6 +22,8 @@ app = typer.Typer(
 )
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks: figures and ratios against a baseline run alongside.")
 app.add_typer(bench_app, name="bench")
+scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")
+app.add_typer(scenario_app, name="scenario")
 console = Console()
 
 
@@ -130,10 +132,25 @@ def run(
 
 
 def _picture(
-    mission: Path, tree: str | None, machine: bool, fmt: str, output: Path | None, trace: Path | None, at: int | None
+    mission: Path,
+    tree: str | None,
+    machine: bool,
+    fmt: str,
+    output: Path | None,
+    trace: Path | None,
+    at: int | None,
+    coverage: Path | None = None,
 ) -> None:
     from behaviors.engine import Engine
-    from behaviors.render import MACHINE_FORMATS, TREE_FORMATS, GraphvizMissing, describe, render, statuses_at
+    from behaviors.render import (
+        MACHINE_FORMATS,
+        TREE_FORMATS,
+        GraphvizMissing,
+        Statuses,
+        describe,
+        render,
+        statuses_at,
+    )
     from behaviors.trace import read_jsonl
     from missions.check import build_root, check, root_spec_path
     from robots.clock import SimClock
@@ -165,6 +182,15 @@ def _picture(
             raise _fail(f"error: cannot read trace {trace}: {exc}", 2) from None
         last = events[-1]["tick"] if events else 0
         statuses = statuses_at(events, last if at is None else at)
+    if coverage is not None:
+        from missions.coverage import untested_of
+
+        try:
+            untested, untested_transitions = untested_of(coverage, mission)
+        except (OSError, ValueError, KeyError) as exc:
+            raise _fail(f"error: cannot use coverage {coverage}: {str(exc).strip(chr(34))}", 2) from None
+        statuses = statuses or Statuses()
+        statuses.untested, statuses.untested_transitions = untested, untested_transitions
     engine = Engine(clock=SimClock(spec.rate_hz))
     try:
         root = build_root(engine.builder(spec.trees, spec.machines, spec.skill_params), spec, spec_path)
@@ -190,9 +216,10 @@ def tree(
     output: Path | None = typer.Option(None, "-o", "--output", help="write to a file instead of stdout"),
     trace: Path | None = typer.Option(None, help="colour nodes by their status in this recorded trace.jsonl"),
     at: int | None = typer.Option(None, help="with --trace: the tick to show (default: the last)"),
+    coverage: Path | None = typer.Option(None, help="draw what this coverage.json says no test reached"),
 ) -> None:
     """Draw a mission's tree (or what it runs: a machine is drawn with the trees in its states)."""
-    _picture(mission, tree_name, False, fmt, output, trace, at)
+    _picture(mission, tree_name, False, fmt, output, trace, at, coverage)
 
 
 @app.command()
@@ -202,14 +229,17 @@ def machine(
     output: Path | None = typer.Option(None, "-o", "--output", help="write to a file instead of stdout"),
     trace: Path | None = typer.Option(None, help="colour states and nodes by a recorded trace.jsonl"),
     at: int | None = typer.Option(None, help="with --trace: the tick to show (default: the last)"),
+    coverage: Path | None = typer.Option(None, help="draw what this coverage.json says no test reached"),
 ) -> None:
     """Draw a mission's state machine, with the trees inside its states."""
-    _picture(mission, None, True, fmt, output, trace, at)
+    _picture(mission, None, True, fmt, output, trace, at, coverage)
 
 
 @app.command("test")
 def test_scenarios(
     paths: list[Path] = typer.Argument(None, help="scenario files or folders (default: missions/scenarios)"),
+    coverage: bool = typer.Option(False, "--coverage", help="print coverage per mission and write it"),
+    coverage_file: Path = typer.Option(Path("coverage.json"), help="where --coverage writes its figures"),
 ) -> None:
     """Run scenario tests without pytest; a failure prints its readable report. Exit 1 if any fails."""
     import tempfile
@@ -228,17 +258,65 @@ def test_scenarios(
     if not files:
         raise _fail(f"error: no scenario files under {', '.join(map(str, roots))}", 2)
     failed = 0
+    from missions.coverage import Session
+
+    session = Session()
     for path in files:
         result = run_scenario(load_scenario(path), Path(tempfile.mkdtemp(prefix=f"botstage-{path.stem}-")))
+        session.add(result)
         if result.passed:
             console.print(f"[green]PASS[/] {path}", highlight=False, soft_wrap=True)
         else:
             failed += 1
             console.print(f"[red]FAIL[/] {path}", highlight=False, soft_wrap=True)
             _stderr([result.report(), ""])
+    if coverage:
+        reports = session.reports()
+        table = Table("mission", "runs", "nodes", "states", "transitions")
+        for report in reports:
+            f = report.figures()
+            table.add_row(
+                report.mission,
+                str(f["runs"]),
+                *(
+                    f"{f[k]['percent']:g}% ({f[k]['covered']}/{f[k]['total']})"
+                    for k in ("nodes", "states", "transitions")
+                ),
+            )
+        console.print(table)
+        for report in reports:
+            for kind, items in zip(("node", "state", "transition"), report.untested(), strict=True):
+                for name in items:
+                    console.print(f"  untested {kind}: {name}", highlight=False, soft_wrap=True)
+        from missions.coverage import write
+
+        write(reports, coverage_file)
+        console.print(f"coverage written to {coverage_file}", highlight=False, soft_wrap=True)
     console.print(f"{len(files) - failed} passed, {failed} failed", highlight=False)
     if failed:
         raise typer.Exit(1)
+
+
+@scenario_app.command("from-trace")
+def scenario_from_trace(
+    trace: Path = typer.Argument(..., help="a recorded run's trace.jsonl (its summary.json beside it)"),
+    output: Path = typer.Option(..., "-o", "--output", help="the scenario file to write"),
+    mission: Path | None = typer.Option(None, help="the mission (default: the one summary.json names)"),
+) -> None:
+    """Turn a recorded run into a regression scenario that replays its skill outcomes."""
+    from missions.scenario import from_trace
+
+    try:
+        spec = from_trace(trace, output, mission)
+    except (OSError, ValueError, KeyError) as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    calls = sum(c.get("times", 1) for v in spec["mocks"].values() for c in v)
+    console.print(
+        f"wrote {output}: {calls} recorded calls of {len(spec['mocks'])} skills, "
+        f"{len(spec['expect']['states'])} states expected",
+        highlight=False,
+        soft_wrap=True,
+    )
 
 
 @app.command()

@@ -149,6 +149,8 @@ def run(
         wall_time_s=round(time.perf_counter() - started, 3),
         ticks=clock.ticks,
         counters=counters,
+        mission_file=str(Path(path).resolve()),
+        until=until,
     )
     if isinstance(clock, WallClock):
         summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
@@ -302,6 +304,8 @@ def summarise(folder: Path, **fields: Any) -> dict[str, Any]:
             k: fields[k]
             for k in ("mission", "robot", "backend", "seed", "outcome", "reason", "sim_time_s", "wall_time_s", "ticks")
         },
+        "mission_file": fields["mission_file"],  # what `botstage scenario from-trace` replays against
+        "until": fields["until"],
         "states_visited": states_visited,
         "skill_outcomes": {skill: dict(sorted(c.items())) for skill, c in sorted(skill_outcomes.items())},
         "counters": fields["counters"],

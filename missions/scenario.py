@@ -33,11 +33,13 @@ from __future__ import annotations
 
 import difflib
 import json
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from behaviors.blackboard import BlackboardError
@@ -59,6 +61,7 @@ class Call(BaseModel):
     outputs: dict[str, Any] = Field(default_factory=dict)
     duration: float = Field(default=0.0, ge=0, description="sim seconds RUNNING before the outcome")
     raises: str | None = Field(default=None, description="raise an error with this message instead")
+    times: int = Field(default=1, ge=1, description="this call, this many times in a row")
 
 
 class Rule(BaseModel):
@@ -134,6 +137,10 @@ def mock_of(real: type[Skill], script: list[Call] | Rule) -> type[Skill]:
     deterministic. A new class is made for every scenario run, so counts start at zero.
     """
     calls = {"n": 0}
+    if isinstance(script, list):
+        script = [call for call in script for _ in range(call.times)]
+    elif script.cycle is not None:
+        script = Rule(cycle=[call for call in script.cycle for _ in range(call.times)])
 
     def next_call(ctx: SkillContext) -> Call:
         n = calls["n"]
@@ -446,3 +453,74 @@ def _excerpt(events: list[dict[str, Any]], index: int) -> str:
 def location(scenario: Scenario) -> Location:
     assert scenario.loaded.locations.root is not None
     return scenario.loaded.locations.root
+
+
+# -- record and replay ----------------------------------------------------------------------
+
+LONG_RUN_S = 1e6  # a call that was still running when the run ended keeps running in the replay
+
+
+def from_trace(trace: Path, output: Path, mission: Path | None = None) -> dict[str, Any]:
+    """A scenario replaying a recorded run: its mocks return the recorded skill outcomes, in the
+    recorded order and after the recorded durations; it expects the recorded outcome, state
+    sequence and number of calls per skill. ``summary.json`` beside the trace names the mission."""
+    summary_path = trace.parent / "summary.json"
+    summary = json.loads(summary_path.read_text(encoding="utf-8")) if summary_path.exists() else {}
+    if mission is None:
+        if "mission_file" not in summary:
+            raise ValueError(f"no summary.json with the mission beside {trace}: name the mission with --mission")
+        mission = Path(summary["mission_file"])
+    calls: dict[str, list[dict[str, Any]]] = {}
+    running: dict[str, dict[str, Any]] = {}
+    events: list[dict[str, Any]] = []
+    with trace.open(encoding="utf-8") as lines:
+        for line in lines:
+            event = json.loads(line)
+            kind = event["ev"]
+            if kind == "skill_start":
+                call: dict[str, Any] = {"outcome": "success", "duration": LONG_RUN_S, "_t": event["t"]}
+                calls.setdefault(event["skill"], []).append(call)
+                running[event["node"]] = call
+            elif kind in ("skill_outcome", "skill_cancel") and event["node"] in running:
+                call = running.pop(event["node"])
+                if kind == "skill_outcome":
+                    call.update(outcome=event["outcome"], duration=round(event["t"] - call["_t"], 6))
+                    if event["reason"]:
+                        call["reason"] = event["reason"]
+                    if event["outputs"]:
+                        call["outputs"] = event["outputs"]
+            elif kind == "bb_write" and event["writer"] == "scenario":
+                events.append({"t": event["t"], "set": {event["key"]: event["new"]}})
+    for skill, script in calls.items():
+        compact: list[dict[str, Any]] = []
+        for call in script:
+            call.pop("_t")
+            if call["duration"] == 0:
+                del call["duration"]
+            if compact and {k: v for k, v in compact[-1].items() if k != "times"} == call:
+                compact[-1]["times"] = compact[-1].get("times", 1) + 1
+            else:
+                compact.append(call)
+        calls[skill] = compact
+    try:
+        relative = Path(os.path.relpath(mission.resolve(), output.resolve().parent))
+    except ValueError:  # another drive
+        relative = mission.resolve()
+    spec: dict[str, Any] = {"mission": relative.as_posix(), "description": f"replay of {trace}"}
+    if "seed" in summary:
+        spec["seed"] = summary["seed"]
+    if summary.get("until"):
+        spec["until"] = summary["until"]
+    spec["mocks"] = calls
+    if events:
+        spec["events"] = events
+    expect: dict[str, Any] = {}
+    if "outcome" in summary:
+        expect["outcome"] = summary["outcome"]
+    expect["states"] = summary.get("states_visited", [])
+    expect["calls"] = [
+        {"skill": skill, "times": sum(c.get("times", 1) for c in script)} for skill, script in sorted(calls.items())
+    ]
+    spec["expect"] = expect
+    output.write_text(yaml.safe_dump(spec, sort_keys=False, width=100), encoding="utf-8")
+    return spec

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import textwrap
 from pathlib import Path
 
 import pytest
+import yaml
 
 from missions.scenario import load_scenario, mock_of, run_scenario
 from skills.registry import Registry
@@ -143,3 +145,59 @@ def test_botstage_test_runs_a_suite_and_fails_on_a_bad_scenario(tmp_path: Path) 
     assert result.returncode == 1
     assert "0 passed, 1 failed" in result.stdout
     assert "outcome: expected 'stopped', got 'done'" in result.stderr
+
+
+def test_a_recorded_run_replays_and_catches_a_change_to_the_tree(tmp_path: Path) -> None:
+    mission = tmp_path / "hello.yaml"
+    shutil.copy(HELLO, mission)
+    assert botstage("run", str(mission), "-q", "--out", str(tmp_path / "run")).returncode == 0
+    replay = tmp_path / "scenarios" / "replay.yaml"
+    replay.parent.mkdir()
+    made = botstage("scenario", "from-trace", str(tmp_path / "run" / "trace.jsonl"), "-o", str(replay))
+    assert made.returncode == 0, made.stderr
+    assert "wrote" in made.stdout
+    spec = yaml.safe_load(replay.read_text())
+    assert spec["mission"] == "../hello.yaml"
+    assert spec["mocks"]["check"][0]["times"] > 10  # repeated calls are compacted
+    assert botstage("test", str(replay)).returncode == 0
+    # a deliberate change to the tree: the patrol's time box shrinks below the recorded wait
+    mission.write_text(mission.read_text().replace("timeout: 10", "timeout: 3"))
+    failed = botstage("test", str(replay))
+    assert failed.returncode == 1
+    assert "states: expected (-) vs actual (+):" in failed.stderr
+
+
+def test_from_trace_without_a_summary_asks_for_the_mission(tmp_path: Path) -> None:
+    (tmp_path / "trace.jsonl").write_text("")
+    result = botstage("scenario", "from-trace", str(tmp_path / "trace.jsonl"), "-o", str(tmp_path / "s.yaml"))
+    assert result.returncode == 2 and "name the mission with --mission" in result.stderr
+
+
+def test_coverage_counts_and_pictures(tmp_path: Path) -> None:
+    cov = tmp_path / "coverage.json"
+    result = botstage("test", "missions/scenarios/hello/normal.yaml", "--coverage", "--coverage-file", str(cov))
+    assert result.returncode == 0
+    assert "44.4% (4/9)" in result.stdout and "untested transition: hello/preempt:estop" in result.stdout
+    data = json.loads(cov.read_text())["missions/hello.yaml"]
+    assert data["nodes"] == {"covered": 9, "total": 9, "percent": 100.0}
+    assert data["node_outcomes"]["hello/working/patrol/patrol/condition"] == {"success": 230}
+    assert set(data["untested"]["transitions"]) == {
+        "hello/greeting:failure",
+        "hello/working:finished",
+        "hello/working/patrol:failure",
+        "hello/working/rest:failure",
+        "hello/preempt:estop",
+    }
+    text = botstage("machine", "--coverage", str(cov)).stdout
+    assert "failure -> stopped (untested)" in text and "preempt: estop -> stopped (untested)" in text
+    dot = botstage("machine", "--coverage", str(cov), "--format", "dot").stdout
+    assert dot.count('style=dashed, color="#999999"') == 5  # 4 untested transitions and the preemption
+    whole = botstage("test", "--coverage", "--coverage-file", str(cov))
+    assert "100% (9/9)" in whole.stdout and "untested" not in whole.stdout
+
+
+def test_coverage_of_another_mission_is_refused(tmp_path: Path) -> None:
+    cov = tmp_path / "coverage.json"
+    cov.write_text('{"other.yaml": {"untested": {"nodes": [], "states": [], "transitions": []}}}')
+    result = botstage("tree", "--coverage", str(cov))
+    assert result.returncode == 2 and "has no coverage of" in result.stderr
