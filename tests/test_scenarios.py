@@ -137,7 +137,7 @@ def test_partial_call_matches_and_counts(tmp_path: Path) -> None:
 
 def test_botstage_test_runs_a_suite_and_fails_on_a_bad_scenario(tmp_path: Path) -> None:
     good = botstage("test", "missions/scenarios/hello")
-    assert good.returncode == 0 and "6 passed, 0 failed" in good.stdout
+    assert good.returncode == 0 and "7 passed, 0 failed" in good.stdout
     bad = tmp_path / "scenarios"
     bad.mkdir()
     (bad / "wrong.yaml").write_text(f"mission: {HELLO}\nexpect: {{outcome: stopped}}\n")
@@ -201,3 +201,13 @@ def test_coverage_of_another_mission_is_refused(tmp_path: Path) -> None:
     cov.write_text('{"other.yaml": {"untested": {"nodes": [], "states": [], "transitions": []}}}')
     result = botstage("tree", "--coverage", str(cov))
     assert result.returncode == 2 and "has no coverage of" in result.stderr
+
+
+@pytest.mark.parametrize("path", sorted(Path("missions/scenarios").rglob("*.yaml")), ids=lambda p: p.stem)
+def test_every_shipped_scenario_is_deterministic(tmp_path: Path, path: Path) -> None:
+    traces = []
+    for name in ("a", "b"):
+        result = run_scenario(load_scenario(path), tmp_path / name)
+        assert result.passed, result.report()
+        traces.append((tmp_path / name / "trace.jsonl").read_bytes())
+    assert traces[0] == traces[1]
