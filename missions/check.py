@@ -85,7 +85,7 @@ def _check(path: Path, registry: Registry | None) -> Checked:
     registry = registry or Registry.default()
     checked = Checked(path, loaded, mission, [])
     _check_keys(mission, checked, out)
-    _check_robot(mission, out)
+    _check_robot(mission, path, registry, out)
     params = _check_skill_params(mission, registry, out)
     engine = Engine(clock=SimClock(mission.rate_hz), registry=registry, seed=mission.seed)
     try:
@@ -166,19 +166,32 @@ def _check_keys(mission: Mission, checked: Checked, out: _Collector) -> None:
                 out.at(("blackboard", key), f"initial value of {rel!r} (declared {type_name(declared)}): {exc}")
 
 
-def _check_robot(mission: Mission, out: _Collector) -> None:
-    from robots import PROFILES_DIR  # profiles arrive with the simulator issue
+def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collector) -> None:
+    from robots.profile import known_profiles, load_profile, profile_path
 
     if mission.robot is not None:
-        known = sorted(p.stem for p in PROFILES_DIR.glob("*.yaml"))
-        given = Path(mission.robot)
-        if mission.robot not in known and not (given.suffix in (".yaml", ".yml") and given.exists()):
+        found = profile_path(mission.robot, path.parent)
+        if found is None:
+            known = known_profiles()
             out.at(
                 ("robot",),
                 f"unknown robot {mission.robot!r}",
-                did_you_mean(mission.robot, known)
-                or ("known: " + ", ".join(known) if known else "no robot profiles are installed yet"),
+                did_you_mean(mission.robot, known) or "known: " + ", ".join(known),
             )
+        else:
+            profile, problems, loaded = load_profile(found)
+            out.problems.extend(problems)
+            if profile is not None:
+                for skill, params in profile.skills.items():
+                    where = loaded.locations.find(("skills", skill))
+                    if skill not in registry:
+                        out.problems.append(Problem(where, f"unknown skill {skill!r}", did_you_mean(skill, registry)))
+                        continue
+                    try:
+                        registry.get(skill).Params(**params)
+                    except ValidationError as exc:
+                        first = exc.errors()[0]
+                        out.problems.append(Problem(where, f"parameter of {skill!r}: {first['msg']}"))
     if mission.world is not None and mission.robot is None:
         out.at(("world",), "a world needs a robot to put in it")
 

@@ -1,0 +1,138 @@
+"""Robot profiles (`robots/profiles/*.yaml`): what a robot is, checked with located errors.
+
+A profile gives the base's geometry and limits, the battery, which interfaces the robot has
+(and which hardware driver provides each; the simulator provides them all), each device's
+parameters, and default parameters for skills. Limits written here are enforced by the
+backends, never trusted to callers.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from robots import PROFILES_DIR
+from robots.interfaces import INTERFACES
+from robots.located_yaml import Loaded, Problem, load_document
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class Base(_Strict):
+    kind: Literal["differential"] = "differential"
+    footprint_radius: float = Field(gt=0, description="m; a circle holding the whole robot")
+    wheel_diameter: float = Field(gt=0, description="m")
+    wheel_separation: float = Field(gt=0, description="m, between the wheels' contact points")
+    max_wheel_rpm: float = Field(gt=0)
+    max_linear: float = Field(gt=0, description="m/s")
+    max_angular: float = Field(gt=0, description="rad/s")
+    max_linear_accel: float = Field(default=0.5, gt=0, description="m/s²")
+    max_angular_accel: float = Field(default=2.0, gt=0, description="rad/s²")
+    encoder_ticks_per_rev: int = Field(gt=0, description="encoder counts per wheel revolution")
+    mass: float = Field(gt=0, description="kg, without payload")
+    payload: float = Field(default=0.0, ge=0, description="kg, the most it carries")
+
+    @property
+    def ticks_per_metre(self) -> float:
+        return self.encoder_ticks_per_rev / (math.pi * self.wheel_diameter)
+
+    @property
+    def wheel_top_speed(self) -> float:
+        return self.max_wheel_rpm * math.pi * self.wheel_diameter / 60
+
+
+class BatterySpec(_Strict):
+    nominal_voltage: float = Field(gt=0)
+    capacity_ah: float = Field(gt=0)
+    full_voltage: float = Field(gt=0)
+    empty_voltage: float = Field(gt=0)
+    idle_current: float = Field(default=0.5, ge=0, description="A drawn standing still")
+    drive_current: float = Field(default=2.0, ge=0, description="A drawn at full speed")
+
+
+class Device(_Strict):
+    """An interface's device. `hardware` names the driver that provides it on a real robot."""
+
+    hardware: str | None = None
+    model: str = ""
+    pose: tuple[float, float, float] = (0.0, 0.0, 0.0)  # x, y, theta on the base
+    rate_hz: float | None = Field(default=None, gt=0)
+    range_min: float | None = Field(default=None, ge=0)
+    range_max: float | None = Field(default=None, gt=0)
+    field_of_view: float | None = Field(default=None, gt=0, le=2 * math.pi, description="rad")
+    beams: int | None = Field(default=None, ge=1)
+    width: int | None = Field(default=None, ge=1)
+    height: int | None = Field(default=None, ge=1)
+    noise: float | None = Field(default=None, ge=0, description="std of the measurement noise")
+
+
+class Profile(_Strict):
+    name: str
+    description: str = ""
+    base: Base
+    battery: BatterySpec
+    interfaces: dict[str, Device]
+    skills: dict[str, dict[str, Any]] = Field(default_factory=dict, description="default skill parameters")
+
+
+def known_profiles() -> list[str]:
+    return sorted(p.stem for p in PROFILES_DIR.glob("*.yaml"))
+
+
+def profile_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
+    """The file of a profile named in a mission: a shipped profile's name, or a path to a YAML."""
+    if name_or_path in known_profiles():
+        return PROFILES_DIR / f"{name_or_path}.yaml"
+    candidate = Path(name_or_path)
+    if relative_to is not None and not candidate.is_absolute():
+        candidate = relative_to / candidate
+    return candidate if candidate.suffix in (".yaml", ".yml") and candidate.exists() else None
+
+
+def load_profile(path: str | Path) -> tuple[Profile | None, list[Problem], Loaded]:
+    loaded = load_document(path)
+    problems = list(loaded.problems)
+    if loaded.data is None:
+        return None, problems, loaded
+
+    def at(where: tuple[str | int, ...], message: str) -> None:
+        problems.append(Problem(loaded.locations.find(where), message))
+
+    try:
+        profile = Profile.model_validate(loaded.data)
+    except ValidationError as exc:
+        for error in exc.errors():
+            loc = tuple(error["loc"])
+            if error["type"] == "extra_forbidden":
+                at(loc, f"unknown key {loc[-1]!r}")
+            else:
+                at(loc, f"{'.'.join(map(str, loc))}: {error['msg'].removeprefix('Value error, ')}")
+        return None, problems, loaded
+    base = profile.base
+    if base.max_linear > base.wheel_top_speed + 1e-9:
+        at(
+            ("base", "max_linear"),
+            f"{base.max_linear} m/s is faster than the wheels can turn: "
+            f"{base.max_wheel_rpm:g} RPM on {base.wheel_diameter:g} m wheels give {base.wheel_top_speed:.3f} m/s",
+        )
+    wheel_turn = 2 * base.wheel_top_speed / base.wheel_separation
+    if base.max_angular > wheel_turn + 1e-9:
+        at(
+            ("base", "max_angular"),
+            f"{base.max_angular} rad/s is faster than the wheels allow ({wheel_turn:.2f} rad/s turning on the spot)",
+        )
+    if profile.battery.empty_voltage >= profile.battery.full_voltage:
+        at(("battery", "empty_voltage"), "must be below full_voltage")
+    for name, device in profile.interfaces.items():
+        if name not in INTERFACES:
+            at(("interfaces", name), f"unknown interface {name!r} (known: {', '.join(INTERFACES)})")
+        if device.range_min is not None and device.range_max is not None and device.range_min >= device.range_max:
+            at(("interfaces", name, "range_min"), "must be below range_max")
+    if profile.name != Path(path).stem and Path(path).parent == PROFILES_DIR:
+        at(("name",), f"a shipped profile's name is its file's name ({Path(path).stem!r})")
+    return (profile if not problems else None), problems, loaded
