@@ -1,0 +1,1 @@
+"""The built-in simulator: a world stepped by the SimClock, and its devices behind the interfaces."""

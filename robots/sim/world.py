@@ -1,0 +1,245 @@
+"""The simulated world: one differential-drive robot on an occupancy grid, stepped by the clock.
+
+Seeded and deterministic: every random draw comes from one numpy Generator made from the seed.
+What it models, and why:
+
+- **Kinematics** with the instantaneous centre of curvature (the book's ICC model), wheel
+  speeds limited by the profile's top speed and accelerations, so commands are shaped as the
+  real base would shape them.
+- **Wheel slip**: each wheel covers its commanded distance times (1 + noise), so odometry
+  drifts the way it does on a floor.
+- **Encoders** count whole ticks (quantisation) of the distance each wheel really covered.
+- **Collisions**: the robot's footprint may not overlap an occupied or unknown cell; a move
+  that would is cut short where it was still clear, the wheels stop and a bump is reported.
+  The robot never passes through a wall.
+- **Watchdog**: with no velocity command for ``watchdog_s`` the robot stops, as a real base's
+  firmware does.
+- **Battery** drains with the current drawn (idle plus a share of the drive current).
+- **IMU** integrates the true turn rate with a gyro bias and noise.
+- **Laser** ranges by ray casting on the grid, all beams at once with numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robots.gridmap import FREE, GridMap
+from robots.interfaces import Pose2D
+from robots.profile import Device, Profile
+
+
+def inflate(blocked: np.ndarray, radius_cells: int) -> np.ndarray:
+    """Cells within ``radius_cells`` of a blocked cell (a disk, by shifting: no scipy needed)."""
+    grown = blocked.copy()
+    rows, cols = blocked.shape
+    for dr in range(-radius_cells, radius_cells + 1):
+        for dc in range(-radius_cells, radius_cells + 1):
+            if dr * dr + dc * dc > radius_cells * radius_cells or (dr == 0 and dc == 0):
+                continue
+            grown[max(dr, 0) : rows + min(dr, 0), max(dc, 0) : cols + min(dc, 0)] |= blocked[
+                max(-dr, 0) : rows + min(-dr, 0), max(-dc, 0) : cols + min(-dc, 0)
+            ]
+    return grown
+
+
+@dataclass
+class WheelState:
+    speed: float = 0.0  # m/s, actual
+    distance: float = 0.0  # m travelled since start (signed)
+    ticks: int = 0
+
+
+@dataclass
+class Body:
+    """The robot's true state in the world."""
+
+    pose: Pose2D
+    left: WheelState = field(default_factory=WheelState)
+    right: WheelState = field(default_factory=WheelState)
+    bumped: bool = False
+    bumps: int = 0
+    yaw_rate: float = 0.0  # true rad/s
+    linear: float = 0.0  # true m/s
+
+
+class World:
+    def __init__(
+        self,
+        grid: GridMap,
+        profile: Profile,
+        start: Pose2D,
+        seed: int = 0,
+        *,
+        slip_std: float = 0.02,
+        gyro_bias: float = 0.002,
+        watchdog_s: float = 0.5,
+    ) -> None:
+        self.grid = grid
+        self.profile = profile
+        self.base = profile.base
+        self.rng = np.random.default_rng(seed)
+        self.slip_std = slip_std
+        self.gyro_bias = gyro_bias
+        self.watchdog_s = watchdog_s
+        self.time = 0.0
+        self.body = Body(start)
+        radius = math.ceil(self.base.footprint_radius / grid.resolution)
+        self.blocked = inflate(grid.data != FREE, radius)  # where the robot's centre may not be
+        self.hits = grid.data != FREE  # what a beam stops at
+        if self.collides(start.x, start.y):
+            raise ValueError(f"the robot cannot start at ({start.x:g}, {start.y:g}): it would overlap an obstacle")
+        self._command = (0.0, 0.0)
+        self._command_time = -math.inf
+        self.battery_charge_ah = profile.battery.capacity_ah
+        self.imu_yaw = start.theta
+
+    # -- commands -----------------------------------------------------------------------------
+
+    def cmd_vel(self, v: float, w: float) -> None:
+        if not (math.isfinite(v) and math.isfinite(w)):
+            raise ValueError(f"a velocity command must be finite, got ({v}, {w})")
+        self._command = (v, w)
+        self._command_time = self.time
+
+    def stop(self) -> None:
+        self.cmd_vel(0.0, 0.0)
+
+    def wheel_targets(self) -> tuple[float, float]:
+        """Commanded (v, w) to wheel speeds, within the profile's limits (the driver's job on hardware)."""
+        v, w = self._command
+        if self.time - self._command_time > self.watchdog_s:
+            v, w = 0.0, 0.0
+        base = self.base
+        v = max(-base.max_linear, min(base.max_linear, v))
+        w = max(-base.max_angular, min(base.max_angular, w))
+        half = base.wheel_separation / 2
+        left, right = v - w * half, v + w * half
+        top = base.wheel_top_speed
+        scale = max(abs(left), abs(right), top) / top  # keep the turn's shape when a wheel saturates
+        return left / scale, right / scale
+
+    # -- stepping -----------------------------------------------------------------------------
+
+    def collides(self, x: float, y: float) -> bool:
+        row, col = self.grid.cell(x, y)
+        return not self.grid.inside(row, col) or bool(self.blocked[row, col])
+
+    def step(self, dt: float) -> None:
+        body, base = self.body, self.base
+        target_left, target_right = self.wheel_targets()
+        limit = base.max_linear_accel * dt
+        for wheel, target in ((body.left, target_left), (body.right, target_right)):
+            wheel.speed += max(-limit, min(limit, target - wheel.speed))
+        slip = 1.0 + self.rng.normal(0.0, self.slip_std, 2)
+        d_left, d_right = float(body.left.speed * dt * slip[0]), float(body.right.speed * dt * slip[1])
+        pose = self._icc(body.pose, d_left, d_right)
+        body.bumped = False
+        if d_left or d_right:
+            pose, clear = self._clear_part(body.pose, pose, d_left, d_right)
+            if not clear:
+                body.bumped = True
+                body.bumps += 1
+                body.left.speed = body.right.speed = 0.0
+                self._command = (0.0, 0.0)
+        travelled = (d_left, d_right) if not body.bumped else self._travelled(body.pose, pose, d_left, d_right)
+        for wheel, distance in zip((body.left, body.right), travelled, strict=True):
+            wheel.distance += distance
+            wheel.ticks = math.floor(wheel.distance / (math.pi * base.wheel_diameter) * base.encoder_ticks_per_rev)
+        body.yaw_rate = _angle(pose.theta - body.pose.theta) / dt
+        body.linear = math.hypot(pose.x - body.pose.x, pose.y - body.pose.y) / dt
+        body.pose = pose
+        gyro = body.yaw_rate + self.gyro_bias + self.rng.normal(0.0, 0.005)
+        self.imu_yaw = _angle(self.imu_yaw + gyro * dt)
+        battery = self.profile.battery
+        load = abs(body.linear) / base.max_linear if base.max_linear else 0.0
+        current = battery.idle_current + battery.drive_current * min(load, 1.0)
+        self.battery_charge_ah = max(0.0, self.battery_charge_ah - current * dt / 3600)
+        self.time += dt
+
+    def _icc(self, pose: Pose2D, d_left: float, d_right: float) -> Pose2D:
+        """The book's ICC model: both wheels turn about one centre (or go straight)."""
+        separation = self.base.wheel_separation
+        d_theta = (d_right - d_left) / separation
+        distance = (d_left + d_right) / 2
+        if abs(d_theta) < 1e-9:
+            return Pose2D(
+                float(pose.x + distance * math.cos(pose.theta)),
+                float(pose.y + distance * math.sin(pose.theta)),
+                pose.theta,
+            )
+        radius = distance / d_theta
+        icc_x = pose.x - radius * math.sin(pose.theta)
+        icc_y = pose.y + radius * math.cos(pose.theta)
+        c, s = math.cos(d_theta), math.sin(d_theta)
+        dx, dy = pose.x - icc_x, pose.y - icc_y
+        return Pose2D(
+            float(icc_x + c * dx - s * dy), float(icc_y + s * dx + c * dy), float(_angle(pose.theta + d_theta))
+        )
+
+    def _clear_part(self, start: Pose2D, end: Pose2D, d_left: float, d_right: float) -> tuple[Pose2D, bool]:
+        """The last clear pose along the move, sampled finer than a cell; and whether all of it was clear."""
+        steps = max(1, math.ceil(max(abs(d_left), abs(d_right)) / (self.grid.resolution / 2)))
+        last = start
+        for k in range(1, steps + 1):
+            pose = self._icc(start, d_left * k / steps, d_right * k / steps)
+            if self.collides(pose.x, pose.y):
+                return last, False
+            last = pose
+        return end, True
+
+    def _travelled(self, start: Pose2D, end: Pose2D, d_left: float, d_right: float) -> tuple[float, float]:
+        full = max(abs(d_left), abs(d_right))
+        if full == 0:
+            return 0.0, 0.0
+        done = (
+            math.hypot(end.x - start.x, end.y - start.y)
+            + abs(_angle(end.theta - start.theta)) * self.base.wheel_separation / 2
+        )
+        share = min(1.0, done / full)
+        return d_left * share, d_right * share
+
+    # -- sensors ------------------------------------------------------------------------------
+
+    def laser(self, device: Device) -> np.ndarray:
+        """Ranges of one scan: every beam cast at once, in steps of half a cell; inf for no return."""
+        beams = device.beams or 181
+        fov = device.field_of_view or math.pi
+        range_min, range_max = device.range_min or 0.0, device.range_max or 10.0
+        mx, my, mtheta = device.pose
+        pose = self.body.pose
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        ox, oy = pose.x + c * mx - s * my, pose.y + s * mx + c * my
+        angles = pose.theta + mtheta - fov / 2 + fov * np.arange(beams) / max(beams - 1, 1)
+        step = self.grid.resolution / 2
+        distances = np.arange(step, range_max + step, step)
+        xs = ox + np.outer(np.cos(angles), distances)
+        ys = oy + np.outer(np.sin(angles), distances)
+        gox, goy, _ = self.grid.origin  # shipped and map_saver maps have no yaw
+        rows = np.floor((ys - goy) / self.grid.resolution).astype(np.int64)
+        cols = np.floor((xs - gox) / self.grid.resolution).astype(np.int64)
+        inside = (rows >= 0) & (rows < self.grid.height) & (cols >= 0) & (cols < self.grid.width)
+        hit = np.ones_like(inside)
+        hit[inside] = self.hits[rows[inside], cols[inside]]
+        first = np.argmax(hit, axis=1)
+        found = hit[np.arange(beams), first]
+        ranges = np.where(found, distances[first], np.inf)
+        if device.noise:
+            ranges = ranges + self.rng.normal(0.0, device.noise, beams)
+        ranges[(ranges > range_max) | (ranges < range_min)] = np.inf
+        return ranges
+
+    @property
+    def battery_percent(self) -> float:
+        return 100.0 * self.battery_charge_ah / self.profile.battery.capacity_ah
+
+    @property
+    def battery_voltage(self) -> float:
+        battery = self.profile.battery
+        return battery.empty_voltage + (battery.full_voltage - battery.empty_voltage) * self.battery_percent / 100
+
+
+def _angle(theta: float) -> float:
+    return (theta + math.pi) % (2 * math.pi) - math.pi

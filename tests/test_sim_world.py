@@ -1,0 +1,146 @@
+"""The simulated world: kinematics, limits, collisions, watchdog, encoders, battery, IMU, laser."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robots.gridmap import load
+from robots.interfaces import Pose2D
+from robots.profile import load_profile
+from robots.sim.world import World
+
+DT = 0.05
+
+
+def world(
+    robot: str = "chefbot", map_name: str = "restaurant", start: Pose2D = Pose2D(10.0, 7.0, 0.0), **kwargs: float
+) -> World:
+    profile, problems, _ = load_profile(f"robots/profiles/{robot}.yaml")
+    assert profile is not None, problems
+    return World(load(f"robots/maps/{map_name}.yaml"), profile, start, **kwargs)
+
+
+def drive(w: World, v: float, omega: float, seconds: float) -> None:
+    for _ in range(round(seconds / DT)):
+        w.cmd_vel(v, omega)
+        w.step(DT)
+
+
+def test_straight_line_with_the_acceleration_ramp() -> None:
+    w = world(slip_std=0.0)
+    drive(w, 0.3, 0.0, 4.0)
+    ramp = 0.3 / w.base.max_linear_accel  # 0.6 s to reach speed
+    expected = 0.3 * (4.0 - ramp) + 0.5 * 0.3 * ramp
+    assert w.body.pose.x - 10.0 == pytest.approx(expected, abs=0.02)
+    assert w.body.pose.y == pytest.approx(7.0) and w.body.pose.theta == pytest.approx(0.0)
+
+
+def test_a_full_circle_comes_back_to_the_start_icc_model() -> None:
+    w = world(slip_std=0.0, start=Pose2D(13.0, 7.0, 0.0))
+    w.body.left.speed, w.body.right.speed = w.wheel_targets()  # start already at speed
+    w.cmd_vel(0.2, 0.4)
+    w.body.left.speed, w.body.right.speed = w.wheel_targets()
+    radius = 0.2 / 0.4
+    steps = round(2 * math.pi / 0.4 / DT)
+    for _ in range(steps):
+        w.cmd_vel(0.2, 0.4)
+        w.step(DT)
+    assert math.hypot(w.body.pose.x - 13.0, w.body.pose.y - 7.0) < 0.02
+    assert w.body.bumps == 0 and radius == 0.5
+
+
+def test_commands_are_limited_by_the_profile() -> None:
+    w = world(slip_std=0.0)
+    drive(w, 5.0, 0.0, 3.0)
+    assert w.body.linear == pytest.approx(w.base.max_linear, rel=1e-6)
+    w2 = world(slip_std=0.0)
+    w2.cmd_vel(0.35, 2.0)
+    left, right = w2.wheel_targets()
+    assert max(abs(left), abs(right)) <= w2.base.wheel_top_speed + 1e-12
+
+
+def test_the_robot_never_passes_through_a_wall() -> None:
+    w = world(start=Pose2D(10.0, 2.0, 0.0), slip_std=0.0)
+    drive(w, 0.35, 0.0, 40.0)  # east along y = 2: the east wall (x = 20), no door there
+    assert w.body.bumps > 0 and w.body.bumped
+    assert w.body.pose.x <= 20.0 - w.base.footprint_radius + 0.05
+    assert not w.collides(w.body.pose.x, w.body.pose.y)
+    assert w.body.left.speed == 0.0 and w.body.right.speed == 0.0
+
+
+def test_table_bumps_stop_the_wheels() -> None:
+    w = world(start=Pose2D(13.0, 6.5, -math.pi / 2))  # heading south, table 2 ahead at y 3.4-4.6
+    drive(w, 0.3, 0.0, 10.0)
+    assert w.body.bumps > 0
+    assert w.body.pose.y > 4.6 + w.base.footprint_radius - 0.05
+
+
+def test_the_watchdog_stops_a_robot_left_without_commands() -> None:
+    w = world(slip_std=0.0)
+    w.cmd_vel(0.3, 0.0)
+    for _ in range(round(2.0 / DT)):
+        w.step(DT)
+    assert w.body.linear == 0.0
+    assert w.body.pose.x - 10.0 < 0.3 * 0.5 + 0.05  # it moved for the watchdog's 0.5 s at most
+
+
+def test_encoders_count_whole_ticks_of_the_real_distance() -> None:
+    w = world(slip_std=0.0)
+    drive(w, 0.2, 0.0, 2.0)
+    per_metre = w.base.encoder_ticks_per_rev / (math.pi * w.base.wheel_diameter)
+    for wheel in (w.body.left, w.body.right):
+        assert isinstance(wheel.ticks, int)
+        assert wheel.ticks == math.floor(wheel.distance * per_metre)
+
+
+def test_same_seed_same_trajectory_other_seed_other_slip() -> None:
+    def trajectory(seed: int) -> list[tuple[float, float, float]]:
+        w = world(seed=seed)
+        poses = []
+        for k in range(200):
+            w.cmd_vel(0.3, 0.3 * math.sin(k / 20))
+            w.step(DT)
+            poses.append((w.body.pose.x, w.body.pose.y, w.body.pose.theta))
+        return poses
+
+    assert trajectory(4) == trajectory(4)
+    assert trajectory(4) != trajectory(5)
+
+
+def test_battery_drains_faster_when_driving() -> None:
+    idle, moving = world(), world()
+    for _ in range(round(60 / DT)):
+        idle.step(DT)
+    drive(moving, 0.3, 0.0, 60)
+    assert 100 > idle.battery_percent > moving.battery_percent
+    assert idle.battery_voltage > moving.battery_voltage
+
+
+def test_the_imu_drifts_with_gyro_bias() -> None:
+    w = world(gyro_bias=0.01)
+    for _ in range(round(100 / DT)):
+        w.step(DT)
+    assert w.body.pose.theta == 0.0
+    assert w.imu_yaw == pytest.approx(1.0, abs=0.05)  # 0.01 rad/s for 100 s
+
+
+def test_laser_ranges_by_ray_casting() -> None:
+    w = world("peoplebot", "museum", start=Pose2D(11.0, 10.0, 0.0))  # hall centre, facing +x
+    laser = w.profile.interfaces["laser"]
+    ranges = w.laser(laser)
+    assert ranges.shape == (181,)
+    ahead = ranges[90]  # straight ahead: the plinth at x 15.4-16.6 seen from the laser at x 11.16
+    assert ahead == pytest.approx(15.4 - 11.16, abs=0.05)
+    right = ranges[0]  # 90 degrees right: exhibit_d's plinth, y 5.4-6.6, straight south
+    assert right == pytest.approx(10.0 - 6.6, abs=0.05)
+    short = laser.model_copy(update={"range_max": 2.0, "noise": 0.0})
+    assert math.isinf(w.laser(short)[90])  # nothing within 2 m ahead: no return
+    assert 20 < np.isfinite(ranges).sum() < 181  # most of the hall lies beyond the laser's 8 m
+
+
+def test_a_start_inside_an_obstacle_is_refused() -> None:
+    with pytest.raises(ValueError, match="cannot start at"):
+        world(start=Pose2D(9.0, 4.0, 0.0))  # on table 1
