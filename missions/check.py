@@ -194,6 +194,54 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
                         out.problems.append(Problem(where, f"parameter of {skill!r}: {first['msg']}"))
     if mission.world is not None and mission.robot is None:
         out.at(("world",), "a world needs a robot to put in it")
+    elif mission.world is not None:
+        _check_world(mission, path, out)
+
+
+def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
+    from robots.gridmap import MapError, load
+    from robots.sim.backend import known_maps, map_path
+
+    assert mission.world is not None
+    found = map_path(mission.world, path.parent)
+    if found is None:
+        out.at(
+            ("world",),
+            f"unknown world {mission.world!r}",
+            did_you_mean(mission.world, known_maps()) or "shipped maps: " + ", ".join(known_maps()),
+        )
+        return
+    try:
+        grid = load(found)
+    except MapError as exc:
+        out.at(("world",), f"the map cannot be loaded: {exc}")
+        return
+    start = mission.start
+    if start is None:
+        if not grid.places:
+            out.at(("world",), "say where the robot starts with `start:` (this map has no named places)")
+        return
+    if isinstance(start, str):
+        if start not in grid.places:
+            out.at(
+                ("start",),
+                f"the map has no place {start!r}",
+                did_you_mean(start, grid.places) or "places: " + ", ".join(grid.places),
+            )
+    elif len(start) not in (2, 3):
+        out.at(("start",), "a start pose is [x, y] or [x, y, yaw]")
+    elif not grid.is_free(start[0], start[1]):
+        out.at(("start",), f"({start[0]:g}, {start[1]:g}) is not free floor on the map")
+
+
+def start_pose(mission: Mission, places: dict[str, tuple[float, float, float]]) -> tuple[float, float, float]:
+    """Where a valid mission's robot starts: its `start`, or the map's first named place."""
+    if isinstance(mission.start, str):
+        return places[mission.start]
+    if isinstance(mission.start, list):
+        x, y, *rest = mission.start
+        return float(x), float(y), float(rest[0]) if rest else 0.0
+    return next(iter(places.values()))
 
 
 def _check_skill_params(mission: Mission, registry: Registry, out: _Collector) -> dict[str, dict[str, Any]]:

@@ -154,6 +154,51 @@ def timeline_svg(spans: list[Span], duration: float) -> str:
     return "".join(parts)
 
 
+def trajectory_map(folder: Path, checked: Checked) -> str:
+    """The map with the robot's true path, as an embedded PNG; empty for robot-less missions."""
+    trajectory = folder / "trajectory.csv"
+    mission = checked.mission
+    if not trajectory.exists() or mission is None or mission.world is None:
+        return ""
+    import base64
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from robots.gridmap import FREE, OCCUPIED, load
+    from robots.sim.backend import map_path
+
+    found = map_path(mission.world, checked.path.parent)
+    assert found is not None
+    grid = load(found)
+    points = np.loadtxt(trajectory, delimiter=",", skiprows=1, ndmin=2)
+    shade = np.where(grid.data == OCCUPIED, 0.0, np.where(grid.data == FREE, 1.0, 0.75))
+    ox, oy, _ = grid.origin
+    extent = (ox, ox + grid.width * grid.resolution, oy, oy + grid.height * grid.resolution)
+    figure, axes = plt.subplots(figsize=(8, 8 * grid.height / grid.width + 0.5))
+    axes.imshow(shade, cmap="gray", origin="lower", extent=extent, vmin=0, vmax=1)
+    for name, (x, y, _) in grid.places.items():
+        axes.plot(x, y, "o", color="#5bc0de", markersize=3)
+        axes.annotate(name, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    axes.plot(points[:, 1], points[:, 2], "-", color="#d9534f", linewidth=1.5, label="trajectory")
+    axes.plot(points[0, 1], points[0, 2], "o", color="#5cb85c", label="start")
+    axes.plot(points[-1, 1], points[-1, 2], "s", color="#d9534f", label="end")
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
+    axes.legend(loc="upper right", fontsize=7)
+    axes.set_title(f"{mission.world}: {len(points)} poses over {points[-1, 0]:g} s")
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=100, bbox_inches="tight")
+    plt.close(figure)
+    encoded = base64.b64encode(buffer.getvalue()).decode()
+    image = f'<img class="map" alt="map with the trajectory" src="data:image/png;base64,{encoded}">'
+    return f'<h2 id="map">Map and trajectory</h2>\n{image}'
+
+
 def pictures(checked: Checked) -> str:
     mission = checked.mission
     assert mission is not None
@@ -223,6 +268,7 @@ def write_report(folder: Path, checked: Checked, summary: dict[str, Any]) -> Pat
 <h3>States and skills</h3>
 <table class="timeline-table"><tr><th>kind</th><th>where</th><th>name</th><th>start s</th><th>end s</th>
 <th>outcome</th><th>reason</th></tr>{timeline_rows}</table>{more}
+{trajectory_map(folder, checked)}
 <h2 id="pictures">Mission</h2>
 {pictures(checked)}
 </body></html>

@@ -24,9 +24,13 @@ from behaviors.engine import Engine
 from behaviors.machine import MachineBehaviour, failure_reason
 from behaviors.skill_behaviour import SkillBehaviour
 from behaviors.trace import Trace, jsonable
-from missions.check import Checked, build_root, check, root_spec_path
+from missions.check import Checked, build_root, check, root_spec_path, start_pose
 from missions.loader import Problem
 from robots.clock import Clock, SimClock, WallClock
+from robots.gridmap import load as load_map
+from robots.interfaces import Pose2D
+from robots.profile import load_profile, profile_path
+from robots.sim.backend import SimBackend, known_maps, map_path
 from skills.registry import Registry
 
 BACKENDS = ("sim", "hardware")
@@ -116,14 +120,29 @@ def run(
     interrupted = False
     stopped = ""
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
-        engine = Engine(clock=clock, seed=seed, trace=Trace(clock, sink, keep=False), registry=registry)
+        sim = _simulator(checked, seed, clock) if backend == "sim" else None
+        engine = Engine(
+            clock=clock,
+            seed=seed,
+            trace=Trace(clock, sink, keep=False),
+            registry=registry,
+            interfaces=sim.devices if sim is not None else None,
+        )
         try:
             root = build(engine, checked, blackboard)
             engine.set_root(root)
             snapshot = _progress_snapshot(engine, root, mission.name, started)
             try:
                 with _sigterm_as_interrupt():
-                    _loop(engine, until, progress, snapshot, progress_interval_s, before_tick)
+                    _loop(
+                        engine,
+                        until,
+                        progress,
+                        snapshot,
+                        progress_interval_s,
+                        before_tick,
+                        sim.step if sim is not None else None,
+                    )
             except KeyboardInterrupt:
                 interrupted = True
                 engine.halt("interrupted by the operator")
@@ -137,6 +156,9 @@ def run(
             counters = {key: jsonable(engine.blackboard.get(key, None)) for key in mission.counters}
         finally:
             engine.close("mission ended")  # cancels whatever still runs: motors stop
+            if sim is not None:
+                sim.close()
+                sim.write_trajectory(folder / "trajectory.csv")
     summary = summarise(
         folder,
         mission=mission.name,
@@ -152,6 +174,8 @@ def run(
         mission_file=str(Path(path).resolve()),
         until=until,
     )
+    if sim is not None:
+        summary["sim"] = sim.summary()
     if isinstance(clock, WallClock):
         summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
     from missions.report import write_report  # matplotlib and friends load only when reporting
@@ -160,6 +184,27 @@ def run(
     write_report(folder, checked, summary)
     (folder / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return RunResult(outcome, reason, folder, summary, final_blackboard)
+
+
+def _simulator(checked: Checked, seed: int, clock: Clock) -> SimBackend | None:
+    """The simulated robot of a mission with a robot and a world; None for robot-less missions."""
+    mission = checked.mission
+    assert mission is not None
+    if mission.robot is None:
+        return None
+    if mission.world is None:
+        raise RunError(
+            f"mission {mission.name!r} names robot {mission.robot!r} but no world: the simulator needs "
+            f"one (`world:` a shipped map: {', '.join(known_maps())}, or a map YAML)"
+        )
+    profile, _, _ = load_profile(profile_path(mission.robot, checked.path.parent))  # type: ignore[arg-type]
+    grid = load_map(map_path(mission.world, checked.path.parent))  # type: ignore[arg-type]
+    assert profile is not None
+    x, y, theta = start_pose(mission, grid.places)
+    try:
+        return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock)
+    except ValueError as exc:
+        raise RunError(str(exc)) from None
 
 
 def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> py_trees.behaviour.Behaviour:
@@ -196,6 +241,7 @@ def _loop(
     snapshot: Callable[[], Progress],
     interval_s: float,
     before_tick: Callable[[Engine], None] | None = None,
+    after_tick: Callable[[], None] | None = None,
 ) -> None:
     clock = engine.clock
     next_report = 0.0
@@ -203,6 +249,8 @@ def _loop(
         if before_tick is not None:
             before_tick(engine)
         status = engine.tick()
+        if after_tick is not None:
+            after_tick()  # the world moves over the tick just decided
         if progress is not None:
             now = time.monotonic()
             if now >= next_report:

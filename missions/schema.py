@@ -51,7 +51,10 @@ class Mission(BaseModel):
     name: str = Field(default="", description="defaults to the file name")
     description: str = ""
     robot: str | None = Field(default=None, description="a robot profile name or a path to a profile YAML")
-    world: str | None = Field(default=None, description="the simulated world (simulation only)")
+    world: str | None = Field(default=None, description="the simulated world: a shipped map's name or a map YAML")
+    start: str | list[float] | None = Field(
+        default=None, description="where the robot starts: a named place of the map, or [x, y] or [x, y, yaw]"
+    )
     seed: int = 0
     rate_hz: float = Field(default=10.0, gt=0, le=10_000, description="ticks per second")
     until: float | None = Field(default=None, gt=0, description="stop after this many seconds of mission time")

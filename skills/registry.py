@@ -20,7 +20,7 @@ from importlib.metadata import entry_points
 from skills.base import Skill
 
 ENTRY_POINT_GROUP = "botstage.skills"
-BUILTIN_MODULES = ("skills.wait", "skills.log", "skills.set", "skills.check")
+BUILTIN_MODULES = ("skills.wait", "skills.log", "skills.set", "skills.check", "skills.move")
 
 
 class UnknownSkillError(LookupError):

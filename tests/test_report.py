@@ -50,18 +50,20 @@ def test_the_console_check_catches_errors(tmp_path: Path) -> None:
     assert any("Uncaught ReferenceError" in line for line in console)
 
 
-@pytest.mark.parametrize("mission", ["missions/hello.yaml", "missions/tree_demo.yaml"])
+@pytest.mark.parametrize("mission", ["missions/hello.yaml", "missions/tree_demo.yaml", "missions/drive_demo.yaml"])
 def test_report_opens_cleanly_with_timeline_and_pictures(tmp_path: Path, mission: str) -> None:
     run(mission, out=tmp_path)
     page = tmp_path / "report.html"
     dom, console = open_in_chromium(page)
     assert console == []
     assert re.search(r'<svg[^>]*class="timeline"', dom)
-    assert dom.count("<rect") > 5  # bars of states and skills
+    assert dom.count("<rect") >= 5  # bars of states and skills
     pictures = dom[dom.index('id="pictures"') :]
     assert "<svg" in pictures and "<g" in pictures  # Graphviz's picture, inline
     assert "<table" in dom and "skill outcomes" in dom.lower()
     text = page.read_text()
-    assert not re.search(r'\s(src|href)="(?!#)', text), "the report must not load anything from outside"
+    assert not re.search(r'\s(src|href)="(?!#|data:)', text), "the report must not load anything from outside"
+    if mission.endswith("drive_demo.yaml"):
+        assert '<img class="map" alt="map with the trajectory" src="data:image/png;base64,' in dom
     if mission.endswith("hello.yaml"):
         assert "working/patrol" in dom and "check ×41" in dom

@@ -1,0 +1,165 @@
+"""The simulator's devices: the robot interfaces, provided by a World.
+
+Odometry is computed from the encoder ticks exactly as a driver computes it from a real board
+(diff_tf's model), so it drifts with the simulated wheel slip; the world's true pose stays
+hidden from skills.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from robots.clock import Clock
+from robots.interfaces import (
+    BatteryState,
+    ImuReading,
+    LaserScan,
+    OdometryReading,
+    Pose2D,
+    SonarReading,
+    Twist2D,
+)
+from robots.profile import Device
+from robots.sim.world import World
+
+
+class SimDrive:
+    def __init__(self, world: World) -> None:
+        self.world = world
+
+    def cmd_vel(self, v: float, w: float) -> None:
+        self.world.cmd_vel(v, w)
+
+    def stop(self) -> None:
+        self.world.stop()
+
+
+class SimOdometry:
+    """Dead reckoning from encoder ticks, with a covariance that grows with distance and turning."""
+
+    def __init__(self, world: World, clock: Clock) -> None:
+        self.world = world
+        self.clock = clock
+        start = world.body.pose
+        self.x, self.y, self.theta = start.x, start.y, start.theta
+        self._ticks = (world.body.left.ticks, world.body.right.ticks)
+        self._twist = Twist2D(0.0, 0.0)
+        self._variance = np.zeros(3)
+        self._at = -1
+
+    def _update(self) -> None:
+        if self._at == self.clock.ticks:
+            return
+        self._at = self.clock.ticks
+        base = self.world.base
+        left, right = self.world.body.left.ticks, self.world.body.right.ticks
+        per_tick = 1.0 / base.ticks_per_metre
+        d_left, d_right = (left - self._ticks[0]) * per_tick, (right - self._ticks[1]) * per_tick
+        self._ticks = (left, right)
+        distance, d_theta = (d_left + d_right) / 2, (d_right - d_left) / base.wheel_separation
+        self.x += distance * math.cos(self.theta + d_theta / 2)
+        self.y += distance * math.sin(self.theta + d_theta / 2)
+        self.theta = math.atan2(math.sin(self.theta + d_theta), math.cos(self.theta + d_theta))
+        period = self.clock.period
+        self._twist = Twist2D(distance / period, d_theta / period)
+        # 2% of distance and 5% of turning as standard deviations, accumulated
+        self._variance += np.array([(0.02 * distance) ** 2, (0.02 * distance) ** 2, (0.05 * d_theta) ** 2])
+
+    def read(self) -> OdometryReading:
+        self._update()
+        return OdometryReading(
+            self.clock.now(), Pose2D(self.x, self.y, self.theta), self._twist, np.diag(self._variance)
+        )
+
+
+class SimImu:
+    def __init__(self, world: World, clock: Clock) -> None:
+        self.world = world
+        self.clock = clock
+
+    def read(self) -> ImuReading:
+        body = self.world.body
+        return ImuReading(self.clock.now(), self.world.imu_yaw, body.yaw_rate + self.world.gyro_bias, (0.0, 0.0))
+
+
+class SimLaser:
+    def __init__(self, world: World, device: Device, clock: Clock) -> None:
+        self.world = world
+        self.device = device
+        self.clock = clock
+
+    def scan(self) -> LaserScan:
+        device = self.device
+        beams = device.beams or 181
+        fov = device.field_of_view or math.pi
+        return LaserScan(
+            self.clock.now(),
+            -fov / 2,
+            fov / max(beams - 1, 1),
+            device.range_min or 0.0,
+            device.range_max or 10.0,
+            self.world.laser(device),
+        )
+
+
+class SimSonar:
+    """An ultrasonic cone: the nearest of a few rays across its field of view."""
+
+    RAYS = 7
+
+    def __init__(self, world: World, device: Device, clock: Clock) -> None:
+        self.world = world
+        self.device = device.model_copy(update={"beams": self.RAYS, "field_of_view": device.field_of_view or 0.26})
+        self.clock = clock
+
+    def read(self) -> SonarReading:
+        ranges = self.world.laser(self.device)
+        nearest = float(np.min(ranges))
+        return SonarReading(self.clock.now(), nearest, self.device.field_of_view or 0.26, self.device.range_max or 4.0)
+
+
+class SimBattery:
+    def __init__(self, world: World, clock: Clock) -> None:
+        self.world = world
+        self.clock = clock
+
+    def read(self) -> BatteryState:
+        world = self.world
+        load = min(abs(world.body.linear) / world.base.max_linear, 1.0)
+        battery = world.profile.battery
+        return BatteryState(
+            self.clock.now(),
+            world.battery_voltage,
+            world.battery_percent,
+            battery.idle_current + battery.drive_current * load,
+        )
+
+
+class SimSpeaker:
+    """Records what was said; speech lasts about 0.4 s a word on the mission clock."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self.said: list[tuple[float, str]] = []
+        self._until = 0.0
+
+    def say(self, text: str) -> None:
+        now = self.clock.now()
+        self.said.append((now, text))
+        self._until = max(self._until, now) + 0.4 * max(1, len(text.split()))
+
+    def busy(self) -> bool:
+        return self.clock.now() < self._until
+
+
+class SimDisplay:
+    """Records which layout was shown when."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self.shown: list[tuple[float, str, dict[str, str]]] = []
+
+    def show(self, layout: str, **content: str) -> None:
+        self.shown.append((self.clock.now(), layout, dict(content)))
