@@ -194,6 +194,8 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
                         out.problems.append(Problem(where, f"parameter of {skill!r}: {first['msg']}"))
     if mission.world is not None and mission.robot is None:
         out.at(("world",), "a world needs a robot to put in it")
+    if mission.people and mission.world is None:
+        out.at(("people",), "simulated people need a world to walk in")
     elif mission.world is not None:
         _check_world(mission, path, out)
 

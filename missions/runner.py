@@ -202,7 +202,7 @@ def _simulator(checked: Checked, seed: int, clock: Clock) -> SimBackend | None:
     assert profile is not None
     x, y, theta = start_pose(mission, grid.places)
     try:
-        return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock)
+        return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock, people=mission.people)
     except ValueError as exc:
         raise RunError(str(exc)) from None
 

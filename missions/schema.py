@@ -55,6 +55,7 @@ class Mission(BaseModel):
     start: str | list[float] | None = Field(
         default=None, description="where the robot starts: a named place of the map, or [x, y] or [x, y, yaw]"
     )
+    people: int = Field(default=0, ge=0, le=500, description="simulated people walking on the map (simulation only)")
     seed: int = 0
     rate_hz: float = Field(default=10.0, gt=0, le=10_000, description="ticks per second")
     until: float | None = Field(default=None, gt=0, description="stop after this many seconds of mission time")

@@ -17,9 +17,11 @@ from robots.sim.devices import (
     SimImu,
     SimLaser,
     SimOdometry,
+    SimPeopleTracker,
     SimSonar,
     SimSpeaker,
 )
+from robots.sim.people import Crowd
 from robots.sim.world import World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
@@ -39,9 +41,12 @@ def map_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
 
 
 class SimBackend:
-    def __init__(self, profile: Profile, grid: GridMap, start: Pose2D, seed: int, clock: Clock) -> None:
+    def __init__(
+        self, profile: Profile, grid: GridMap, start: Pose2D, seed: int, clock: Clock, people: int = 0
+    ) -> None:
         self.clock = clock
         self.world = World(grid, profile, start, seed)
+        self.crowd = Crowd.populate(grid, self.world.rng, people, avoid=(start.x, start.y))
         self.devices: dict[str, Any] = {}
         self.not_simulated: list[str] = []
         makers = {
@@ -53,16 +58,18 @@ class SimBackend:
             "battery": lambda d: SimBattery(self.world, clock),
             "speaker": lambda d: SimSpeaker(clock),
             "display": lambda d: SimDisplay(clock),
+            "people": lambda d: SimPeopleTracker(self.world, self.crowd, d, clock),
         }
         for name, device in profile.interfaces.items():
             if name in makers:
                 self.devices[name] = makers[name](device)
             else:
-                self.not_simulated.append(name)  # people, camera, microphone: coming with the perception issue
+                self.not_simulated.append(name)  # camera, microphone: coming with the perception issue
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
 
     def step(self) -> None:
         self.world.step(self.clock.period)
+        self.crowd.step(self.clock.period)
         pose = self.world.body.pose
         self.trajectory.append((self.world.time, pose.x, pose.y, pose.theta))
 
@@ -82,6 +89,7 @@ class SimBackend:
             "distance_m": round(distance, 4),
             "final_pose": [round(final.x, 4), round(final.y, 4), round(final.theta, 4)],
             "bumps": self.world.body.bumps,
+            "people": len(self.crowd.people),
             "battery_percent": round(self.world.battery_percent, 3),
             "not_simulated": self.not_simulated,
         }

@@ -19,9 +19,11 @@ from robots.interfaces import (
     OdometryReading,
     Pose2D,
     SonarReading,
+    TrackedPerson,
     Twist2D,
 )
 from robots.profile import Device
+from robots.sim.people import Crowd
 from robots.sim.world import World
 
 
@@ -163,3 +165,45 @@ class SimDisplay:
 
     def show(self, layout: str, **content: str) -> None:
         self.shown.append((self.clock.now(), layout, dict(content)))
+
+
+class SimPeopleTracker:
+    """People as a Kinect skeleton tracker reports them: in its frame (x right, z forward), within
+    its range and field of view, not behind walls, with noise; ids stay with their person."""
+
+    def __init__(self, world: World, crowd: Crowd, device: Device, clock: Clock) -> None:
+        self.world = world
+        self.crowd = crowd
+        self.device = device
+        self.clock = clock
+        self.range_min = device.range_min or 0.8
+        self.range_max = device.range_max or 4.0
+
+    def people(self) -> list[TrackedPerson]:
+        device, pose = self.device, self.world.body.pose
+        mx, my, mtheta = device.pose
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        sx, sy, heading = pose.x + c * mx - s * my, pose.y + s * mx + c * my, pose.theta + mtheta
+        half_fov = (device.field_of_view or 1.0) / 2
+        seen = []
+        for person in self.crowd.people:
+            dx, dy = person.x - sx, person.y - sy
+            forward = dx * math.cos(heading) + dy * math.sin(heading)
+            right = dx * math.sin(heading) - dy * math.cos(heading)
+            distance = math.hypot(dx, dy)
+            if not self.range_min <= forward <= self.range_max or abs(math.atan2(right, forward)) > half_fov:
+                continue
+            if self._occluded(sx, sy, dx / distance, dy / distance, distance):
+                continue
+            noise = self.world.rng.normal(0.0, device.noise or 0.0, 2) if device.noise else (0.0, 0.0)
+            seen.append(TrackedPerson(person.id, right + float(noise[0]), forward + float(noise[1])))
+        return seen
+
+    def _occluded(self, x: float, y: float, ux: float, uy: float, distance: float) -> bool:
+        grid = self.world.grid
+        step = grid.resolution / 2
+        for k in range(1, int((distance - 0.3) / step)):
+            row, col = grid.cell(x + ux * k * step, y + uy * k * step)
+            if not grid.inside(row, col) or self.world.hits[row, col]:
+                return True
+        return False

@@ -1,0 +1,176 @@
+"""Simulated people: individuals who walk and stop, and groups who gather, stay and leave.
+
+A person walks in straight lines towards goals on free floor (a new goal when the next step
+would hit something), pauses now and then, and joins a group when one forms. A group of 2 to 6
+meets at a gathering point, each member standing 0.3 to 0.6 m from the point (so every member is
+within 1.5 m of another, the paper's crowd definition), stays a while, then disperses. All
+randomness comes from the world's generator: the same seed gives the same people.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robots.gridmap import FREE, GridMap
+from robots.sim.world import inflate
+
+PERSON_RADIUS = 0.25
+
+
+@dataclass
+class Person:
+    id: int
+    x: float
+    y: float
+    speed: float
+    goal: tuple[float, float]
+    pause_until: float = 0.0
+    group: int | None = None
+
+
+@dataclass
+class Group:
+    id: int
+    centre: tuple[float, float]
+    members: list[int]
+    spots: dict[int, tuple[float, float]]
+    leave_at: float = math.inf  # set once everyone has arrived
+    arrived: bool = False
+
+
+@dataclass
+class Crowd:
+    grid: GridMap
+    rng: np.random.Generator
+    people: list[Person] = field(default_factory=list)
+    groups: list[Group] = field(default_factory=list)
+    next_group_at: float = 5.0
+    time: float = 0.0
+    _next_id: int = 1
+
+    def __post_init__(self) -> None:
+        self.standable = ~inflate(self.grid.data != FREE, math.ceil(PERSON_RADIUS / self.grid.resolution))
+        self._free_cells = np.argwhere(self.standable)
+
+    @classmethod
+    def populate(
+        cls,
+        grid: GridMap,
+        rng: np.random.Generator,
+        count: int,
+        avoid: tuple[float, float] | None = None,
+        keep_away: float = 1.0,
+    ) -> Crowd:
+        crowd = cls(grid, rng)
+        for _ in range(count):
+            x, y = crowd.random_spot(avoid, keep_away)
+            crowd.people.append(Person(crowd._new_id(), x, y, float(rng.uniform(0.6, 1.3)), crowd.random_spot()))
+        return crowd
+
+    def _new_id(self) -> int:
+        self._next_id += 1
+        return self._next_id - 1
+
+    def random_spot(self, avoid: tuple[float, float] | None = None, keep_away: float = 0.0) -> tuple[float, float]:
+        for _ in range(1000):
+            row, col = self._free_cells[self.rng.integers(len(self._free_cells))]
+            x, y = self.grid.point(int(row), int(col))
+            if avoid is None or math.hypot(x - avoid[0], y - avoid[1]) >= keep_away:
+                return x, y
+        raise ValueError("no free floor for a person on this map")
+
+    def can_stand(self, x: float, y: float) -> bool:
+        row, col = self.grid.cell(x, y)
+        return self.grid.inside(row, col) and bool(self.standable[row, col])
+
+    # -- stepping ---------------------------------------------------------------------------
+
+    def step(self, dt: float) -> None:
+        self.time += dt
+        if self.time >= self.next_group_at:
+            self._form_group()
+            self.next_group_at = self.time + float(self.rng.uniform(20.0, 60.0))
+        for group in self.groups:
+            if not group.arrived and all(self._at(self._person(m), group.spots[m]) for m in group.members):
+                group.arrived = True
+                group.leave_at = self.time + float(self.rng.uniform(30.0, 120.0))
+        for group in [g for g in self.groups if self.time >= g.leave_at]:
+            self.groups.remove(group)
+            for member in group.members:
+                person = self._person(member)
+                person.group = None
+                person.goal = self.random_spot()
+        for person in self.people:
+            self._walk(person, dt)
+
+    def _person(self, pid: int) -> Person:
+        return next(p for p in self.people if p.id == pid)
+
+    @staticmethod
+    def _at(person: Person, spot: tuple[float, float]) -> bool:
+        return math.hypot(person.x - spot[0], person.y - spot[1]) < 0.05
+
+    def _form_group(self) -> None:
+        free = [p for p in self.people if p.group is None]
+        if len(free) < 2:
+            return
+        size = int(self.rng.integers(2, min(6, len(free)) + 1))
+        centre = self.random_spot()
+        spots = self._spots_around(centre, size)
+        if spots is None:
+            return
+        order = self.rng.permutation(len(free))
+        members = [free[int(i)] for i in order[:size]]
+        # a group that cannot all arrive (someone stuck behind an obstacle) breaks up after 90 s
+        group = Group(self._new_id(), centre, [m.id for m in members], {}, leave_at=self.time + 90.0)
+        for member, spot in zip(members, spots, strict=True):
+            member.group = group.id
+            member.goal = spot
+            member.pause_until = 0.0
+            group.spots[member.id] = spot
+        self.groups.append(group)
+
+    def _spots_around(self, centre: tuple[float, float], size: int) -> list[tuple[float, float]] | None:
+        start = float(self.rng.uniform(0, 2 * math.pi))
+        spots = []
+        for k in range(size):
+            angle = start + 2 * math.pi * k / size
+            radius = float(self.rng.uniform(0.3, 0.6))
+            spot = (centre[0] + radius * math.cos(angle), centre[1] + radius * math.sin(angle))
+            if not self.can_stand(*spot):
+                return None
+            spots.append(spot)
+        return spots
+
+    def _walk(self, person: Person, dt: float) -> None:
+        if self.time < person.pause_until:
+            return
+        gx, gy = person.goal
+        dx, dy = gx - person.x, gy - person.y
+        distance = math.hypot(dx, dy)
+        if distance < 0.05:
+            person.x, person.y = gx, gy
+            if person.group is None:  # an individual pauses, then walks on
+                person.pause_until = self.time + float(self.rng.uniform(0.0, 8.0))
+                person.goal = self.random_spot()
+            return
+        stride = min(person.speed * dt, distance)
+        nx, ny = person.x + dx / distance * stride, person.y + dy / distance * stride
+        if self.can_stand(nx, ny):
+            person.x, person.y = nx, ny
+        elif person.group is None:
+            person.goal = self.random_spot()  # blocked: pick somewhere else
+        else:
+            person.goal = (gx, gy)  # wait and retry: group spots are reachable floor
+            person.x, person.y = self._sidestep(person, dx / distance, dy / distance, stride)
+
+    def _sidestep(self, person: Person, ux: float, uy: float, stride: float) -> tuple[float, float]:
+        for turn in (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2):
+            c, s = math.cos(turn), math.sin(turn)
+            nx, ny = person.x + (c * ux - s * uy) * stride, person.y + (s * ux + c * uy) * stride
+            if self.can_stand(nx, ny):
+                return nx, ny
+        return person.x, person.y
