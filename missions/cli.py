@@ -364,5 +364,14 @@ def bench_tick(quick: bool = typer.Option(False, help="fewer repeats: a smoke ru
         _stderr([f"over target: {', '.join(over)}"])
 
 
+@bench_app.command("sim")
+def bench_sim(quick: bool = typer.Option(False, help="a shorter run: a smoke test, not figures to quote")) -> None:
+    """Simulation speed of the PeopleBot in the museum with 20 people and the laser at 10 Hz."""
+    results = _load_bench("sim").main(quick=quick)
+    slow = [r["bench"] for r in results if r["speedup_vs_realtime"] < r["target"]]
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
+
+
 def main() -> None:  # pragma: no cover - console script entry
     app()

@@ -83,6 +83,13 @@ def test_bench_tick_prints_json_lines() -> None:
     assert rows[3]["ticks"] == 10_000 and rows[3]["wall_s"] > 0
 
 
+def test_bench_sim_prints_json() -> None:
+    result = botstage("bench", "sim", "--quick")
+    assert result.returncode == 0, result.stderr
+    row = json.loads(result.stdout.splitlines()[0])
+    assert row["bench"] == "sim_museum" and row["people"] == 20 and row["speedup_vs_realtime"] > 0
+
+
 def test_readme_and_ci_run_the_same_test_command() -> None:
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()

@@ -136,6 +136,9 @@ def test_laser_ranges_by_ray_casting() -> None:
     assert ahead == pytest.approx(15.4 - 11.16, abs=0.05)
     right = ranges[0]  # 90 degrees right: exhibit_d's plinth, y 5.4-6.6, straight south
     assert right == pytest.approx(10.0 - 6.6, abs=0.05)
+    exact = w.laser(laser.model_copy(update={"noise": 0.0}))  # without noise: within a quarter cell
+    assert exact[90] == pytest.approx(15.4 - 11.16, abs=0.0125 + 1e-9)
+    assert exact[0] == pytest.approx(10.0 - 6.6, abs=0.0125 + 1e-9)
     short = laser.model_copy(update={"range_max": 2.0, "noise": 0.0})
     assert math.isinf(w.laser(short)[90])  # nothing within 2 m ahead: no return
     assert 20 < np.isfinite(ranges).sum() < 181  # most of the hall lies beyond the laser's 8 m

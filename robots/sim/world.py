@@ -89,6 +89,7 @@ class World:
         radius = math.ceil(self.base.footprint_radius / grid.resolution)
         self.blocked = inflate(grid.data != FREE, radius)  # where the robot's centre may not be
         self.hits = grid.data != FREE  # what a beam stops at
+        self._padded = np.pad(self.hits, 1, constant_values=True)  # off the map counts as a hit
         if self.collides(start.x, start.y):
             raise ValueError(f"the robot cannot start at ({start.x:g}, {start.y:g}): it would overlap an obstacle")
         self._command = (0.0, 0.0)
@@ -213,19 +214,34 @@ class World:
         c, s = math.cos(pose.theta), math.sin(pose.theta)
         ox, oy = pose.x + c * mx - s * my, pose.y + s * mx + c * my
         angles = pose.theta + mtheta - fov / 2 + fov * np.arange(beams) / max(beams - 1, 1)
-        step = self.grid.resolution / 2
-        distances = np.arange(step, range_max + step, step)
-        xs = ox + np.outer(np.cos(angles), distances)
-        ys = oy + np.outer(np.sin(angles), distances)
+        resolution = self.grid.resolution
+        distances = np.arange(resolution, range_max + resolution, resolution)  # one cell per step
         gox, goy, _ = self.grid.origin  # shipped and map_saver maps have no yaw
-        rows = np.floor((ys - goy) / self.grid.resolution).astype(np.int64)
-        cols = np.floor((xs - gox) / self.grid.resolution).astype(np.int64)
-        inside = (rows >= 0) & (rows < self.grid.height) & (cols >= 0) & (cols < self.grid.width)
-        hit = np.ones_like(inside)
-        hit[inside] = self.hits[rows[inside], cols[inside]]
+        steps = distances / resolution
+        # +1: the padded grid's border; clipping sends rays leaving the map into that blocked border
+        rows = np.floor((oy - goy) / resolution + np.outer(np.sin(angles), steps)).astype(np.int32) + 1
+        cols = np.floor((ox - gox) / resolution + np.outer(np.cos(angles), steps)).astype(np.int32) + 1
+        np.clip(rows, 0, self._padded.shape[0] - 1, out=rows)
+        np.clip(cols, 0, self._padded.shape[1] - 1, out=cols)
+        hit = self._padded[rows, cols]
         first = np.argmax(hit, axis=1)
         found = hit[np.arange(beams), first]
-        ranges = np.where(found, distances[first], np.inf)
+        # the surface lies within the last step: two halvings give a quarter-cell accuracy
+        high = distances[first]
+        low = high - resolution
+        sin, cos = np.sin(angles), np.cos(angles)
+        for _ in range(2):
+            middle = (low + high) / 2
+            r = np.clip(
+                np.floor((oy - goy + sin * middle) / resolution).astype(np.int32) + 1, 0, self._padded.shape[0] - 1
+            )
+            c = np.clip(
+                np.floor((ox - gox + cos * middle) / resolution).astype(np.int32) + 1, 0, self._padded.shape[1] - 1
+            )
+            inside = self._padded[r, c]
+            high = np.where(inside, middle, high)
+            low = np.where(inside, low, middle)
+        ranges = np.where(found, high, np.inf)
         if device.noise:
             ranges = ranges + self.rng.normal(0.0, device.noise, beams)
         ranges[(ranges > range_max) | (ranges < range_min)] = np.inf

@@ -1,0 +1,70 @@
+"""Simulation speed: sim seconds per wall second, against real time.
+
+The PeopleBot in the museum with 20 people, stepped at 10 Hz: the world (kinematics, collisions,
+encoders, battery, IMU), the crowd, a full SICK laser scan (181 beams, 8 m) and a read of the
+people tracker every tick, with the robot driving in circles. Not yet included: camera
+rendering and audio (they arrive with the perception issue), so this is an upper bound until then.
+
+Run with ``botstage bench sim``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+from robots.clock import SimClock
+from robots.gridmap import load
+from robots.interfaces import Pose2D
+from robots.profile import load_profile
+from robots.sim.backend import MAPS_DIR, SimBackend
+
+TARGET = 200.0  # sim seconds per wall second
+
+
+def bench_museum(sim_seconds: float, repeats: int) -> dict[str, Any]:
+    profile, problems, _ = load_profile(MAPS_DIR.parent / "profiles" / "peoplebot.yaml")
+    assert profile is not None, problems
+    grid = load(MAPS_DIR / "museum.yaml")
+
+    def once() -> tuple[float, int]:
+        clock = SimClock(10)
+        backend = SimBackend(profile, grid, Pose2D(*grid.places["hall_centre"]), 1, clock, people=20)
+        laser, tracker, drive = backend.devices["laser"], backend.devices["people"], backend.devices["drive"]
+        seen = 0
+        start = time.perf_counter()
+        while clock.now() < sim_seconds:
+            laser.scan()
+            seen += len(tracker.people())
+            drive.cmd_vel(0.3, 0.3)
+            backend.step()
+            clock.next_tick()
+        return time.perf_counter() - start, seen
+
+    runs = [once() for _ in range(repeats)]
+    wall = min(r[0] for r in runs)
+    return {
+        "bench": "sim_museum",
+        "robot": "peoplebot",
+        "people": 20,
+        "rate_hz": 10,
+        "laser_beams": 181,
+        "sim_s": sim_seconds,
+        "wall_s": round(wall, 4),
+        "speedup_vs_realtime": round(sim_seconds / wall, 1),
+        "target": TARGET,
+        "people_sightings": runs[0][1],
+        "excludes": "camera rendering, audio",
+    }
+
+
+def main(quick: bool = False) -> list[dict[str, Any]]:
+    results = [bench_museum(60.0 if quick else 600.0, 2 if quick else 3)]
+    for result in results:
+        print(json.dumps(result), flush=True)
+    return results
+
+
+if __name__ == "__main__":
+    main()
