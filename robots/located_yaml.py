@@ -183,3 +183,14 @@ def load_document(path: str | Path) -> Loaded:
         problems.append(Problem(locations.root, "expected a mapping at the top of the file"))  # type: ignore[arg-type]
         data = None
     return Loaded(data, locations, problems, [path])
+
+
+def find_yaml(name_or_path: str, folder: Path, names: list[str], relative_to: Path | None = None) -> Path | None:
+    """A resource named in a mission: one of ``names`` shipped in ``folder``, or a path to a YAML
+    file (relative to the mission's folder). None when neither exists."""
+    if name_or_path in names:
+        return folder / f"{name_or_path}.yaml"
+    candidate = Path(name_or_path)
+    if relative_to is not None and not candidate.is_absolute():
+        candidate = relative_to / candidate
+    return candidate if candidate.suffix in (".yaml", ".yml") and candidate.exists() else None

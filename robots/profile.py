@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from robots import PROFILES_DIR
 from robots.interfaces import INTERFACES
-from robots.located_yaml import Loaded, Problem, load_document
+from robots.located_yaml import Loaded, Problem, find_yaml, load_document
 
 
 class _Strict(BaseModel):
@@ -86,12 +86,7 @@ def known_profiles() -> list[str]:
 
 def profile_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
     """The file of a profile named in a mission: a shipped profile's name, or a path to a YAML."""
-    if name_or_path in known_profiles():
-        return PROFILES_DIR / f"{name_or_path}.yaml"
-    candidate = Path(name_or_path)
-    if relative_to is not None and not candidate.is_absolute():
-        candidate = relative_to / candidate
-    return candidate if candidate.suffix in (".yaml", ".yml") and candidate.exists() else None
+    return find_yaml(name_or_path, PROFILES_DIR, known_profiles(), relative_to)
 
 
 def load_profile(path: str | Path) -> tuple[Profile | None, list[Problem], Loaded]:

@@ -9,6 +9,7 @@ from typing import Any
 from robots.clock import Clock
 from robots.gridmap import GridMap
 from robots.interfaces import Pose2D
+from robots.located_yaml import find_yaml
 from robots.profile import Profile
 from robots.sim.devices import (
     SimBattery,
@@ -32,12 +33,8 @@ def known_maps() -> list[str]:
 
 
 def map_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
-    if name_or_path in known_maps():
-        return MAPS_DIR / f"{name_or_path}.yaml"
-    candidate = Path(name_or_path)
-    if relative_to is not None and not candidate.is_absolute():
-        candidate = relative_to / candidate
-    return candidate if candidate.suffix in (".yaml", ".yml") and candidate.exists() else None
+    """The map a mission's `world:` names: a shipped map's name, or a map YAML's path."""
+    return find_yaml(name_or_path, MAPS_DIR, known_maps(), relative_to)
 
 
 class SimBackend:
