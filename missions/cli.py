@@ -373,5 +373,14 @@ def bench_sim(quick: bool = typer.Option(False, help="a shorter run: a smoke tes
         _stderr([f"under target: {', '.join(slow)}"])
 
 
+@bench_app.command("nav")
+def bench_nav(quick: bool = typer.Option(False, help="fewer plans: a smoke test, not figures to quote")) -> None:
+    """Global planning time on a 1000 x 1000-cell map."""
+    results = _load_bench("nav").main(quick=quick)
+    slow = [r["bench"] for r in results if r["median_ms"] > r["target_ms"]]
+    if slow and not quick:
+        _stderr([f"over target: {', '.join(slow)}"])
+
+
 def main() -> None:  # pragma: no cover - console script entry
     app()

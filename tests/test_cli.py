@@ -90,6 +90,13 @@ def test_bench_sim_prints_json() -> None:
     assert row["bench"] == "sim_museum" and row["people"] == 20 and row["speedup_vs_realtime"] > 0
 
 
+def test_bench_nav_prints_json() -> None:
+    result = botstage("bench", "nav", "--quick")
+    assert result.returncode == 0, result.stderr
+    row = json.loads(result.stdout.splitlines()[0])
+    assert row["bench"] == "plan_1000x1000" and row["plans"] == 10 and row["median_ms"] > 0
+
+
 def test_readme_and_ci_run_the_same_test_command() -> None:
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()

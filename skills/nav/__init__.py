@@ -1,0 +1,1 @@
+"""Navigation algorithms the navigation skills use: costmaps, planning, following paths."""
