@@ -1,0 +1,133 @@
+"""Following a path: regulated pure pursuit with collision checking on the laser.
+
+Pure pursuit steers towards a point one look-ahead distance along the path; "regulated" slows
+the robot on tight curves, when nearing the goal, and when the laser sees something close ahead
+(Macenski et al., the controller Nav2 ships). When something is closer than the stop distance
+in the robot's path, it stops and reports `blocked` so the skill can replan or recover. When
+the path lies behind the robot, it turns in place first; at the goal it turns to the goal's
+heading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from robots.interfaces import LaserScan, Pose2D
+
+
+@dataclass(frozen=True)
+class FollowerParams:
+    max_linear: float = 0.35
+    max_angular: float = 1.5
+    lookahead: float = 0.6
+    goal_tolerance: float = 0.08  # m
+    heading_tolerance: float = 0.06  # rad
+    slow_near_goal: float = 0.8  # m: ramp down over this distance
+    min_linear: float = 0.05
+    min_turning_radius: float = 0.4  # m: slow down on curves tighter than this
+    rotate_threshold: float = math.radians(60)  # turn in place when the path is this far off
+    robot_radius: float = 0.2
+    stop_clearance: float = 0.12  # m beyond the robot's radius
+    slow_clearance: float = 0.6
+    laser_x: float = 0.0  # m: where the laser sits ahead of the base's centre
+
+
+@dataclass(frozen=True)
+class Command:
+    v: float
+    w: float
+    state: str  # following, rotating, aligning, arrived, blocked
+    reason: str = ""
+
+
+def _angle(theta: float) -> float:
+    return (theta + math.pi) % (2 * math.pi) - math.pi
+
+
+class PathFollower:
+    def __init__(self, path: list[tuple[float, float]], goal_heading: float | None, params: FollowerParams) -> None:
+        if not path:
+            raise ValueError("a path needs at least its goal")
+        self.path = _densify(np.asarray(path, dtype=float), 0.05)  # so the look-ahead never falls behind
+        self.goal_heading = goal_heading
+        self.params = params
+        self._progress = 0  # index of the path point closest to the robot so far (never goes back)
+
+    def command(self, pose: Pose2D, scan: LaserScan | None = None) -> Command:
+        p = self.params
+        gx, gy = self.path[-1]
+        to_goal = math.hypot(gx - pose.x, gy - pose.y)
+        if to_goal <= p.goal_tolerance:
+            if self.goal_heading is None:
+                return Command(0.0, 0.0, "arrived")
+            error = _angle(self.goal_heading - pose.theta)
+            if abs(error) <= p.heading_tolerance:
+                return Command(0.0, 0.0, "arrived")
+            return Command(0.0, _clamp(2.0 * error, p.max_angular, minimum=0.2), "aligning")
+        tx, ty = self._lookahead_point(pose)
+        dx, dy = tx - pose.x, ty - pose.y
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        ahead, left = c * dx + s * dy, -s * dx + c * dy  # the target in the robot's frame
+        bearing = math.atan2(left, ahead)
+        if abs(bearing) > p.rotate_threshold:
+            return Command(0.0, _clamp(2.0 * bearing, p.max_angular, minimum=0.3), "rotating")
+        distance_sq = ahead * ahead + left * left
+        curvature = 2.0 * left / distance_sq if distance_sq > 1e-9 else 0.0
+        v = p.max_linear
+        if abs(curvature) > 1.0 / p.min_turning_radius:
+            v *= 1.0 / (p.min_turning_radius * abs(curvature))
+        v = min(v, max(p.min_linear, p.max_linear * to_goal / p.slow_near_goal))
+        if scan is not None:
+            clearance = _clearance_along(scan, curvature, p)
+            if clearance < p.stop_clearance:
+                return Command(0.0, 0.0, "blocked", f"an obstacle {clearance + p.robot_radius:.2f} m ahead")
+            if clearance < p.slow_clearance:
+                v *= max(0.2, (clearance - p.stop_clearance) / (p.slow_clearance - p.stop_clearance))
+        w = v * curvature
+        if abs(w) > p.max_angular:
+            v *= p.max_angular / abs(w)
+            w = math.copysign(p.max_angular, w)
+        return Command(v, w, "following")
+
+    def _lookahead_point(self, pose: Pose2D) -> tuple[float, float]:
+        path, p = self.path, self.params
+        window = path[self._progress :]
+        distances = np.hypot(window[:, 0] - pose.x, window[:, 1] - pose.y)
+        self._progress += int(np.argmin(distances[: max(1, min(len(distances), 40))]))
+        beyond = np.hypot(path[self._progress :, 0] - pose.x, path[self._progress :, 1] - pose.y)
+        far = np.nonzero(beyond >= p.lookahead)[0]
+        index = self._progress + int(far[0]) if len(far) else len(path) - 1
+        return float(path[index, 0]), float(path[index, 1])
+
+
+def _clearance_along(scan: LaserScan, curvature: float, p: FollowerParams) -> float:
+    """How far the robot can go along the commanded arc before its footprint touches a return."""
+    points = scan.points()
+    if len(points) == 0:
+        return math.inf
+    points = points + np.array([p.laser_x, 0.0])  # into the base frame
+    horizon = p.slow_clearance + p.robot_radius
+    s = np.arange(0.0, horizon + 0.05, 0.05)
+    if abs(curvature) < 1e-6:
+        arc = np.column_stack((s, np.zeros_like(s)))
+    else:
+        arc = np.column_stack((np.sin(curvature * s) / curvature, (1 - np.cos(curvature * s)) / curvature))
+    near = np.hypot(points[None, :, 0] - arc[:, None, 0], points[None, :, 1] - arc[:, None, 1]) < p.robot_radius
+    touching = np.nonzero(near.any(axis=1))[0]
+    return float(s[touching[0]]) if len(touching) else math.inf
+
+
+def _densify(path: np.ndarray, spacing: float) -> np.ndarray:
+    points = [path[0]]
+    for a, b in zip(path[:-1], path[1:], strict=True):
+        steps = max(1, math.ceil(float(np.hypot(*(b - a))) / spacing))
+        points.extend(a + (b - a) * k / steps for k in range(1, steps + 1))
+    return np.asarray(points)
+
+
+def _clamp(value: float, limit: float, minimum: float = 0.0) -> float:
+    magnitude = min(abs(value), limit)
+    return math.copysign(max(magnitude, minimum), value)
