@@ -10,6 +10,7 @@ heading.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -122,7 +123,7 @@ def _clearance_along(scan: LaserScan, curvature: float, p: FollowerParams) -> fl
 
 def _densify(path: np.ndarray, spacing: float) -> np.ndarray:
     points = [path[0]]
-    for a, b in zip(path[:-1], path[1:], strict=True):
+    for a, b in itertools.pairwise(path):
         steps = max(1, math.ceil(float(np.hypot(*(b - a))) / spacing))
         points.extend(a + (b - a) * k / steps for k in range(1, steps + 1))
     return np.asarray(points)
