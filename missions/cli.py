@@ -18,6 +18,7 @@ from missions import DEFAULT_MISSION
 app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
+    pretty_exceptions_show_locals=False,  # a traceback must never print a secret held in a variable
     help="Orchestrate robots with behaviour trees and hierarchical state machines.",
 )
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks: figures and ratios against a baseline run alongside.")
