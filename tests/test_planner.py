@@ -61,3 +61,9 @@ def test_maps_from_ros_tooling_plan_too() -> None:
     grid = load(shared)
     plan = Planner(grid, inflated_costs(grid, 0.105)).plan((-1.8, -0.5), (1.8, 0.5))  # across the pillars
     assert plan.length > math.hypot(3.6, 1.0) - 0.05
+
+
+def test_start_and_goal_in_one_cell_still_end_at_the_goal() -> None:
+    grid = load(Path("robots/maps/museum.yaml"))
+    plan = Planner(grid, inflated_costs(grid, 0.3)).plan((4.5, 1.5), (4.51, 1.5))
+    assert plan.points == [(4.5, 1.5), (4.51, 1.5)]

@@ -147,3 +147,68 @@ def test_laser_ranges_by_ray_casting() -> None:
 def test_a_start_inside_an_obstacle_is_refused() -> None:
     with pytest.raises(ValueError, match="cannot start at"):
         world(start=Pose2D(9.0, 4.0, 0.0))  # on table 1
+
+
+def _diagonal_world(start: Pose2D, yaw: float = 0.0) -> World:
+    from robots.gridmap import GridMap
+
+    data = np.zeros((100, 100), dtype=np.int8)
+    for i in range(100):
+        data[i, 99 - i] = 100  # a wall one cell thick, running diagonally
+    profile, _, _ = load_profile("robots/profiles/peoplebot.yaml")
+    grid = GridMap(data, 0.05, (0.0, 0.0, yaw))
+    return World(grid, profile, start, seed=0)
+
+
+@pytest.mark.parametrize("offset", [k * 0.013 for k in range(11)])
+def test_laser_does_not_see_through_a_thin_diagonal_wall(offset: float) -> None:
+    w = _diagonal_world(Pose2D(1.0 + offset, 1.0, math.pi / 4))
+    device = w.profile.interfaces["laser"].model_copy(
+        update={"pose": (0.0, 0.0, 0.0), "noise": None, "beams": 1, "field_of_view": 1e-4}
+    )
+    # the wall is the line x + y = 4.95 (cell centres): about (4.95 - 2 - offset) / sqrt 2 away
+    assert w.laser(device)[0] < 2.3
+
+
+def test_laser_honours_the_maps_origin_yaw() -> None:
+    from robots.gridmap import GridMap
+
+    data = np.zeros((200, 200), dtype=np.int8)
+    data[:, 150] = 100  # grid column 150: with the map turned 90 degrees, the line y = 7.5
+    profile, _, _ = load_profile("robots/profiles/peoplebot.yaml")
+    w = World(GridMap(data, 0.05, (0.0, 0.0, math.pi / 2)), profile, Pose2D(-5.0, 5.0, math.pi / 2), seed=0)
+    device = profile.interfaces["laser"].model_copy(
+        update={"pose": (0.0, 0.0, 0.0), "noise": None, "beams": 1, "field_of_view": 1e-4}
+    )
+    assert w.laser(device)[0] == pytest.approx(2.5, abs=0.05)
+
+
+def test_reading_a_sensor_does_not_change_the_robots_path() -> None:
+    def final(read: bool) -> Pose2D:
+        w = world("peoplebot", "museum", start=Pose2D(11.0, 10.0, 0.0), seed=5)
+        for _ in range(200):
+            if read:
+                w.laser(w.profile.interfaces["laser"])
+            w.cmd_vel(0.3, 0.2)
+            w.step(DT)
+        return w.body.pose
+
+    assert final(True) == final(False)
+
+
+def test_odometry_speed_is_right_however_often_it_is_read() -> None:
+    from robots.clock import SimClock
+    from robots.sim.backend import SimBackend
+
+    profile, _, _ = load_profile("robots/profiles/peoplebot.yaml")
+    clock = SimClock(20)
+    backend = SimBackend(profile, load("robots/maps/museum.yaml"), Pose2D(11.0, 10.0, 0.0), 0, clock)
+    odometry = backend.devices["odometry"]
+    for k in range(100):
+        backend.devices["drive"].cmd_vel(0.3, 0.0)
+        backend.step()
+        clock.next_tick()
+        if k == 40:
+            odometry.read()  # the first read averages over the start and the acceleration: skip it
+        elif k % 5 == 0 and k > 40:  # then read only every fifth tick
+            assert odometry.read().twist.v == pytest.approx(0.3, abs=0.03)

@@ -24,7 +24,7 @@ from robots.interfaces import (
 )
 from robots.profile import Device
 from robots.sim.people import Crowd
-from robots.sim.world import World
+from robots.sim.world import RAY_STEP, World
 
 
 class SimDrive:
@@ -49,11 +49,12 @@ class SimOdometry:
         self._ticks = (world.body.left.ticks, world.body.right.ticks)
         self._twist = Twist2D(0.0, 0.0)
         self._variance = np.zeros(3)
-        self._at = -1
+        self._at = clock.ticks  # the encoders' counts at this tick are the reference
 
     def _update(self) -> None:
         if self._at == self.clock.ticks:
             return
+        elapsed = (self.clock.ticks - self._at) * self.clock.period
         self._at = self.clock.ticks
         base = self.world.base
         left, right = self.world.body.left.ticks, self.world.body.right.ticks
@@ -64,8 +65,7 @@ class SimOdometry:
         self.x += distance * math.cos(self.theta + d_theta / 2)
         self.y += distance * math.sin(self.theta + d_theta / 2)
         self.theta = math.atan2(math.sin(self.theta + d_theta), math.cos(self.theta + d_theta))
-        period = self.clock.period
-        self._twist = Twist2D(distance / period, d_theta / period)
+        self._twist = Twist2D(distance / elapsed, d_theta / elapsed)  # over the time since the last read
         # 2% of distance and 5% of turning as standard deviations, accumulated
         self._variance += np.array([(0.02 * distance) ** 2, (0.02 * distance) ** 2, (0.05 * d_theta) ** 2])
 
@@ -195,7 +195,7 @@ class SimPeopleTracker:
                 continue
             if self._occluded(sx, sy, dx / distance, dy / distance, distance):
                 continue
-            noise = self.world.rng.normal(0.0, device.noise or 0.0, 2) if device.noise else (0.0, 0.0)
+            noise = self.world.noise("people").normal(0.0, device.noise, 2) if device.noise else (0.0, 0.0)
             seen.append(TrackedPerson(person.id, right + float(noise[0]), forward + float(noise[1])))
         return seen
 
@@ -203,10 +203,6 @@ class SimPeopleTracker:
         """Anything solid on the line of sight, up to 0.3 m short of the person."""
         world = self.world
         resolution = world.grid.resolution
-        steps = np.arange(1.0, max((distance - 0.3) / resolution, 1.0))
-        gox, goy, _ = world.grid.origin
-        rows = np.floor((y - goy) / resolution + uy * steps).astype(np.int32) + 1
-        cols = np.floor((x - gox) / resolution + ux * steps).astype(np.int32) + 1
-        np.clip(rows, 0, world._padded.shape[0] - 1, out=rows)
-        np.clip(cols, 0, world._padded.shape[1] - 1, out=cols)
+        steps = np.arange(RAY_STEP, max((distance - 0.3) / resolution, RAY_STEP), RAY_STEP)
+        rows, cols = world.padded_cells(x + ux * steps * resolution, y + uy * steps * resolution)
         return bool(world._padded[rows, cols].any())

@@ -22,6 +22,7 @@ What it models, and why:
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,6 +30,19 @@ import numpy as np
 from robots.gridmap import FREE, GridMap
 from robots.interfaces import Pose2D
 from robots.profile import Device, Profile
+
+RAY_STEP = 0.7  # in cells: under the half-diagonal (1/sqrt 2), so a thin diagonal wall is not stepped over
+
+
+def close_corners(hits: np.ndarray) -> np.ndarray:
+    """Fill the gap where two blocked cells touch only at a corner (a one-cell staircase wall),
+    so a ray cannot slip between them: their chords there can be arbitrarily short."""
+    closed = hits.copy()
+    down = hits[:-1, :-1] & hits[1:, 1:] & ~hits[:-1, 1:] & ~hits[1:, :-1]
+    up = hits[:-1, 1:] & hits[1:, :-1] & ~hits[:-1, :-1] & ~hits[1:, 1:]
+    closed[:-1, 1:] |= down
+    closed[:-1, :-1] |= up
+    return closed
 
 
 def inflate(blocked: np.ndarray, radius_cells: int) -> np.ndarray:
@@ -80,7 +94,9 @@ class World:
         self.grid = grid
         self.profile = profile
         self.base = profile.base
-        self.rng = np.random.default_rng(seed)
+        self.seed = seed
+        self.rng = np.random.default_rng(seed)  # wheel slip and the IMU
+        self._noise: dict[str, np.random.Generator] = {}
         self.slip_std = slip_std
         self.gyro_bias = gyro_bias
         self.watchdog_s = watchdog_s
@@ -89,7 +105,7 @@ class World:
         radius = math.ceil(self.base.footprint_radius / grid.resolution)
         self.blocked = inflate(grid.data != FREE, radius)  # where the robot's centre may not be
         self.hits = grid.data != FREE  # what a beam stops at
-        self._padded = np.pad(self.hits, 1, constant_values=True)  # off the map counts as a hit
+        self._padded = np.pad(close_corners(self.hits), 1, constant_values=True)  # off the map counts as a hit
         if self.collides(start.x, start.y):
             raise ValueError(f"the robot cannot start at ({start.x:g}, {start.y:g}): it would overlap an obstacle")
         self._command = (0.0, 0.0)
@@ -215,37 +231,47 @@ class World:
         ox, oy = pose.x + c * mx - s * my, pose.y + s * mx + c * my
         angles = pose.theta + mtheta - fov / 2 + fov * np.arange(beams) / max(beams - 1, 1)
         resolution = self.grid.resolution
-        distances = np.arange(resolution, range_max + resolution, resolution)  # one cell per step
-        gox, goy, _ = self.grid.origin  # shipped and map_saver maps have no yaw
-        steps = distances / resolution
-        # +1: the padded grid's border; clipping sends rays leaving the map into that blocked border
-        rows = np.floor((oy - goy) / resolution + np.outer(np.sin(angles), steps)).astype(np.int32) + 1
-        cols = np.floor((ox - gox) / resolution + np.outer(np.cos(angles), steps)).astype(np.int32) + 1
-        np.clip(rows, 0, self._padded.shape[0] - 1, out=rows)
-        np.clip(cols, 0, self._padded.shape[1] - 1, out=cols)
+        step = RAY_STEP * resolution  # under a cell's half-diagonal: thin diagonal walls are not skipped
+        distances = np.arange(step, range_max + step, step)
+        sin, cos = np.sin(angles), np.cos(angles)
+        rows, cols = self.padded_cells(ox + np.outer(cos, distances), oy + np.outer(sin, distances))
         hit = self._padded[rows, cols]
         first = np.argmax(hit, axis=1)
         found = hit[np.arange(beams), first]
-        # the surface lies within the last step: two halvings give a quarter-cell accuracy
+        # the surface lies within the last step: two halvings refine it to a quarter of a step
         high = distances[first]
-        low = high - resolution
-        sin, cos = np.sin(angles), np.cos(angles)
+        low = high - step
         for _ in range(2):
             middle = (low + high) / 2
-            r = np.clip(
-                np.floor((oy - goy + sin * middle) / resolution).astype(np.int32) + 1, 0, self._padded.shape[0] - 1
-            )
-            c = np.clip(
-                np.floor((ox - gox + cos * middle) / resolution).astype(np.int32) + 1, 0, self._padded.shape[1] - 1
-            )
+            r, c = self.padded_cells(ox + cos * middle, oy + sin * middle)
             inside = self._padded[r, c]
             high = np.where(inside, middle, high)
             low = np.where(inside, low, middle)
         ranges = np.where(found, high, np.inf)
         if device.noise:
-            ranges = ranges + self.rng.normal(0.0, device.noise, beams)
+            ranges = ranges + self.noise("laser").normal(0.0, device.noise, beams)
         ranges[(ranges > range_max) | (ranges < range_min)] = np.inf
         return ranges
+
+    def padded_cells(self, xs: np.ndarray | float, ys: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """Cells of the padded hit grid for world points, the map's origin yaw included; points
+        off the map land on its blocked border."""
+        ox, oy, yaw = self.grid.origin
+        dx, dy = np.asarray(xs) - ox, np.asarray(ys) - oy
+        if yaw:
+            c, s = math.cos(-yaw), math.sin(-yaw)
+            dx, dy = c * dx - s * dy, s * dx + c * dy
+        rows = np.clip(np.floor(dy / self.grid.resolution).astype(np.int32) + 1, 0, self._padded.shape[0] - 1)
+        cols = np.clip(np.floor(dx / self.grid.resolution).astype(np.int32) + 1, 0, self._padded.shape[1] - 1)
+        return rows, cols
+
+    def noise(self, sensor: str) -> np.random.Generator:
+        """Each sensor draws from its own generator, so reading one never changes the others
+        (or the wheel slip): adding a skill that reads a sensor leaves the robot's path alone."""
+        generator = self._noise.get(sensor)
+        if generator is None:
+            generator = self._noise[sensor] = np.random.default_rng([self.seed, zlib.crc32(sensor.encode())])
+        return generator
 
     @property
     def battery_percent(self) -> float:

@@ -54,6 +54,8 @@ class Planner:
         steps = np.diff(np.asarray(cells, dtype=float), axis=0)
         length = float(np.hypot(steps[:, 0], steps[:, 1]).sum()) * self.grid.resolution if len(cells) > 1 else 0.0
         cost = float(self.costs[cells[:, 0], cells[:, 1]].sum())
+        if len(cells) == 1:  # start and goal share a cell
+            return Plan([start, goal], math.hypot(goal[0] - start[0], goal[1] - start[1]), cost)
         every = max(1, round(spacing / self.grid.resolution))
         thinned = points[::every]
         if thinned[-1] != points[-1]:
