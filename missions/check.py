@@ -37,6 +37,7 @@ class Checked:
     problems: list[Problem]
     key_types: dict[str, Any] = field(default_factory=dict)
     key_defaults: dict[str, Any] = field(default_factory=dict)
+    keys_used: set[str] = field(default_factory=set)  # read or written by what the mission runs
 
     @property
     def ok(self) -> bool:
@@ -95,6 +96,7 @@ def _check(path: Path, registry: Registry | None) -> Checked:
             _build(builder, mission, root_path, out)
             _check_machines(builder.plans, out)
             _check_usages(builder.usages, mission, checked, out)
+            checked.keys_used = {u.key for u in builder.usages}
         # every named tree and machine is checked on its own too, used or not
         alone = engine.builder(mission.trees, mission.machines, params)
         for name in mission.trees:

@@ -16,12 +16,17 @@ import pytest
 from missions.scenario import Result, load_scenario, run_scenario
 
 
-def is_scenario(path: Path) -> bool:
-    return path.suffix in (".yaml", ".yml") and "scenarios" in path.parts
+def is_scenario(path: Path, root: Path) -> bool:
+    """YAML files under a `scenarios` folder inside the test run's root (not anywhere above it)."""
+    try:
+        parts = path.relative_to(root).parts
+    except ValueError:
+        parts = path.parts
+    return path.suffix in (".yaml", ".yml") and "scenarios" in parts[:-1]
 
 
 def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Collector | None:
-    if is_scenario(file_path):
+    if is_scenario(file_path, parent.config.rootpath):
         return ScenarioFile.from_parent(parent, path=file_path)
     return None
 
@@ -39,7 +44,8 @@ class ScenarioFile(pytest.File):
 
 class ScenarioItem(pytest.Item):
     def runtest(self) -> None:
-        out = Path(tempfile.mkdtemp(prefix=f"botstage-scenario-{self.name}-"))
+        factory = getattr(self.config, "_tmp_path_factory", None)  # pytest's managed, pruned temp folders
+        out = factory.mktemp(f"scenario-{self.name}") if factory else Path(tempfile.mkdtemp(prefix="botstage-"))
         result = run_scenario(load_scenario(self.path), out)
         if not result.passed:
             raise ScenarioFailed(result)

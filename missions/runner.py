@@ -174,6 +174,8 @@ def run(
         mission_file=str(Path(path).resolve()),
         until=until,
     )
+    if blackboard:
+        summary["blackboard_overrides"] = jsonable(blackboard)  # what a replay must set again
     if sim is not None:
         summary["sim"] = sim.summary()
     if isinstance(clock, WallClock):

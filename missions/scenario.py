@@ -37,17 +37,17 @@ import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from behaviors.blackboard import BlackboardError
+from behaviors.blackboard import BlackboardError, normalise_key
 from behaviors.builder import did_you_mean
 from behaviors.engine import Engine
 from missions.loader import Loaded, Location, Problem, load
 from missions.runner import MissionInvalid, RunError, StopRun, run
-from skills.base import Outcome, Skill, SkillContext, SkillRun
+from skills.base import Outcome, Skill, SkillContext, SkillRun, check_type, type_name
 from skills.expression import EvaluationError, ExpressionError, compile_expression
 from skills.registry import Registry
 
@@ -78,8 +78,8 @@ class Rule(BaseModel):
         if self.cycle is not None and not self.cycle:
             raise ValueError("cycle needs at least one call")
         weights = self.probability
-        if weights is not None and (not weights or any(p < 0 for p in weights.values())):
-            raise ValueError("probability maps outcomes to non-negative weights")
+        if weights is not None and (not weights or any(p < 0 for p in weights.values()) or not sum(weights.values())):
+            raise ValueError("probability maps outcomes to non-negative weights, not all zero")
         return self
 
 
@@ -120,7 +120,7 @@ class ScenarioSpec(BaseModel):
     description: str = ""
     seed: int | None = None
     until: float | None = Field(default=None, gt=0)
-    mocks: dict[str, list[Call] | Rule] = Field(default_factory=dict)
+    mocks: dict[str, Annotated[list[Call], Field(min_length=1)] | Rule] = Field(default_factory=dict)
     mock_all: bool = False
     blackboard: dict[str, Any] = Field(default_factory=dict)
     events: list[Event] = Field(default_factory=list)
@@ -177,7 +177,7 @@ def mock_of(real: type[Skill], script: list[Call] | Rule) -> type[Skill]:
             "kind": real.kind,
             "inputs": real.inputs,
             "outputs": real.outputs,
-            "outcomes": tuple(real.all_outcomes - {"success", "failure"}),
+            "outcomes": tuple(sorted(real.all_outcomes - {"success", "failure"})),
             "Params": real.Params,
             "run": run,
             "__module__": __name__,
@@ -233,7 +233,7 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
             if error["type"] == "extra_forbidden":
                 at(loc, f"unknown key {loc[-1]!r}")
             else:
-                at(loc, f"{'.'.join(map(str, loc))}: {error['msg']}")
+                at(loc, f"{'.'.join(map(str, loc))}: {error['msg'].removeprefix('Value error, ')}")
         return Scenario(path, None, _unique(problems), loaded)
     registry = registry or Registry.default()
     mission = (path.parent / spec.mission).resolve()
@@ -257,12 +257,42 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
                         f"skill {name!r} has no outcome {outcome!r}",
                         "declared: " + ", ".join(sorted(real.all_outcomes)),
                     )
+    if mission.exists():
+        _check_keys(spec, mission, registry, at)
     for index, condition in enumerate(spec.expect.never):
         try:
             compile_expression(condition)
         except ExpressionError as exc:
             at(("expect", "never", index), str(exc))
     return Scenario(path, spec, _unique(problems), loaded)
+
+
+def _check_keys(spec: ScenarioSpec, mission: Path, registry: Registry, at: Any) -> None:
+    """Scenario keys must be keys the mission uses, of their declared types."""
+    from missions.check import check
+
+    checked = check(mission, registry)
+    if checked.mission is None:
+        return
+    known = checked.keys_used | set(checked.key_types) | {k.strip("/") for k in checked.mission.blackboard}
+    writes = [(("blackboard", key), key, value) for key, value in spec.blackboard.items()]
+    for index, event in enumerate(spec.events):
+        writes += [(("events", index, "set", key), key, value) for key, value in event.set.items()]
+    for where, key, value in writes:
+        try:
+            rel = normalise_key(key)
+        except BlackboardError as exc:
+            at(where, str(exc))
+            continue
+        if rel not in known:
+            at(where, f"the mission never reads or writes {rel!r}", did_you_mean(rel, known))
+            continue
+        declared = checked.key_types.get(rel)
+        if declared is not None:
+            try:
+                check_type(declared, value)
+            except TypeError as exc:
+                at(where, f"{rel!r} is declared {type_name(declared)}: {exc}")
 
 
 def _check_call(real: type[Skill], call: Call, where: tuple[str | int, ...], at: Any) -> None:
@@ -466,6 +496,11 @@ def from_trace(trace: Path, output: Path, mission: Path | None = None) -> dict[s
     sequence and number of calls per skill. ``summary.json`` beside the trace names the mission."""
     summary_path = trace.parent / "summary.json"
     summary = json.loads(summary_path.read_text(encoding="utf-8")) if summary_path.exists() else {}
+    if summary.get("outcome") == "stopped_by_test":
+        raise ValueError(
+            f"{trace} was stopped by a scenario's never-condition: "
+            "replay that scenario itself rather than a recording of it"
+        )
     if mission is None:
         if "mission_file" not in summary:
             raise ValueError(f"no summary.json with the mission beside {trace}: name the mission with --mission")
@@ -511,6 +546,8 @@ def from_trace(trace: Path, output: Path, mission: Path | None = None) -> dict[s
         spec["seed"] = summary["seed"]
     if summary.get("until"):
         spec["until"] = summary["until"]
+    if summary.get("blackboard_overrides"):
+        spec["blackboard"] = summary["blackboard_overrides"]
     spec["mocks"] = calls
     if events:
         spec["events"] = events

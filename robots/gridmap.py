@@ -126,6 +126,8 @@ def read_pgm(path: Path) -> tuple[np.ndarray, int]:
             raise MapError(path, "pixels", "ASCII pixel values must be numbers") from None
         if values.size != width * height:
             raise MapError(path, "pixels", f"expected {width * height} values, found {values.size}")
+        if values.size and (values.min() < 0 or values.max() > maxval):
+            raise MapError(path, "pixels", f"values must lie within 0..{maxval}")
         return values.reshape(height, width), maxval
     position += 1  # exactly one whitespace byte after maxval
     dtype = np.dtype(np.uint8) if maxval < 256 else np.dtype(">u2")
@@ -163,6 +165,8 @@ def load(path: str | Path) -> GridMap:
         header = yaml.safe_load(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise MapError(path, "file", "no such map file") from None
+    except UnicodeDecodeError:
+        raise MapError(path, "file", "not a YAML header (is this the image? give the .yaml beside it)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
@@ -179,9 +183,9 @@ def load(path: str | Path) -> GridMap:
     if not (
         isinstance(origin, list)
         and len(origin) == 3
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in origin)
+        and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in origin)
     ):
-        raise MapError(path, "origin", f"must be [x, y, yaw], got {origin!r}")
+        raise MapError(path, "origin", f"must be [x, y, yaw] of finite numbers, got {origin!r}")
     negate = header.get("negate", 0)
     if negate not in (0, 1, True, False):
         raise MapError(path, "negate", f"must be 0 or 1, got {negate!r}")

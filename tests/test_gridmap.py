@@ -102,6 +102,7 @@ def test_cells_and_points_are_inverse_even_rotated() -> None:
         ({"resolution": "fine"}, "resolution", "must be a number, got 'fine'"),
         ({"resolution": 0}, "resolution", "must be positive"),
         ({"origin": [1, 2]}, "origin", "must be [x, y, yaw]"),
+        ({"origin": [float("nan"), 0, 0]}, "origin", "of finite numbers"),
         ({"negate": 2}, "negate", "must be 0 or 1"),
         ({"free_thresh": 0.9}, "free_thresh", "need 0 <= free_thresh"),
         ({"mode": "fuzzy"}, "mode", "must be one of trinary, scale, raw"),
@@ -127,6 +128,7 @@ def test_a_broken_header_names_the_file_and_field(tmp_path: Path, header: dict, 
         (b"P5\n2 2\n255\n" + bytes(3), "pixels", "truncated: 3 of 4 bytes"),
         (b"P2\n2 2\n255\n0 0 0\n", "pixels", "expected 4 values, found 3"),
         (b"P5\n0 2\n255\n", "header", "bad size"),
+        (b"P2\n2 2\n255\n0 0 0 300\n", "pixels", "values must lie within 0..255"),
     ],
 )
 def test_a_broken_image_names_the_file_and_field(tmp_path: Path, content: bytes, field: str, message: str) -> None:
@@ -136,6 +138,12 @@ def test_a_broken_image_names_the_file_and_field(tmp_path: Path, content: bytes,
         load(path)
     assert (info.value.field, info.value.file) == (field, str(tmp_path / "m.pgm"))
     assert message in str(info.value)
+
+
+def test_the_image_given_instead_of_the_header(tmp_path: Path) -> None:
+    write_pgm(tmp_path / "m.pgm", np.full((4, 4), 254, dtype=np.uint8))
+    with pytest.raises(MapError, match="not a YAML header"):
+        load(tmp_path / "m.pgm")
 
 
 def test_missing_and_malformed_map_files(tmp_path: Path) -> None:

@@ -53,7 +53,7 @@ def test_a_wrong_expectation_fails_with_a_readable_diff(pytester: pytest.Pyteste
             "    stopped",
             "trace around the first divergence:",
             '*"ev": "transition"*"dest": "working/patrol"*',
-            "run folder: *botstage-scenario-estop-*",
+            "run folder: *scenario-estop*",
         ]
     )
 
@@ -211,3 +211,54 @@ def test_every_shipped_scenario_is_deterministic(tmp_path: Path, path: Path) -> 
         assert result.passed, result.report()
         traces.append((tmp_path / name / "trace.jsonl").read_bytes())
     assert traces[0] == traces[1]
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (
+            "mocks: {wait: []}\n",
+            "s.yaml:2:9: error: mocks.wait: List should have at least 1 item after validation, not 0",
+        ),
+        (
+            "mocks: {log: {probability: {success: 0}}}\n",
+            "s.yaml:2:9: error: mocks.log: probability maps outcomes to non-negative weights, not all zero",
+        ),
+        (
+            "events: [{t: 1, set: {'bad key!': 1}}]\n",
+            "s.yaml:2:23: error: invalid blackboard key 'bad key!': use identifiers separated by '/', "
+            "e.g. 'robot/battery_pct'",
+        ),
+        (
+            "blackboard: {batery_pct: 1}\n",
+            "s.yaml:2:14: error: the mission never reads or writes 'batery_pct' (did you mean 'battery_pct'?)",
+        ),
+    ],
+)
+def test_scripts_and_keys_that_would_silently_do_nothing_are_errors(tmp_path: Path, text: str, expected: str) -> None:
+    assert problems(tmp_path, text) == [expected]
+
+
+def test_a_replay_keeps_the_scenarios_blackboard_overrides(tmp_path: Path) -> None:
+    original = scenario(tmp_path, "blackboard: {estop: true}\nexpect: {outcome: stopped}\n")
+    result = run_scenario(original, tmp_path / "run")
+    assert result.passed, result.report()
+    replay = tmp_path / "replay.yaml"
+    assert botstage("scenario", "from-trace", str(tmp_path / "run" / "trace.jsonl"), "-o", str(replay)).returncode == 0
+    assert yaml.safe_load(replay.read_text())["blackboard"] == {"estop": True}
+    assert run_scenario(load_scenario(replay), tmp_path / "again").passed
+
+
+def test_runs_stopped_by_a_never_condition_are_not_recorded(tmp_path: Path) -> None:
+    run_scenario(scenario(tmp_path, "expect: {never: ['greeted']}\n"), tmp_path / "run")
+    result = botstage("scenario", "from-trace", str(tmp_path / "run" / "trace.jsonl"), "-o", str(tmp_path / "r.yaml"))
+    assert result.returncode == 2 and "stopped by a scenario's never-condition" in result.stderr
+
+
+def test_the_plugin_only_collects_scenarios_inside_the_root(tmp_path: Path) -> None:
+    from missions.pytest_plugin import is_scenario
+
+    root = tmp_path / "scenarios" / "checkout"  # a checkout living under some folder named scenarios
+    assert not is_scenario(root / "robots" / "profiles" / "chefbot.yaml", root)
+    assert is_scenario(root / "missions" / "scenarios" / "hello" / "normal.yaml", root)
+    assert not is_scenario(root / "missions" / "scenarios" / "notes.txt", root)
