@@ -259,6 +259,13 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
                     )
     if mission.exists():
         _check_keys(spec, mission, registry, at)
+    for index, call in enumerate(spec.expect.calls):
+        if call.skill not in registry:
+            at(("expect", "calls", index, "skill"), f"unknown skill {call.skill!r}", did_you_mean(call.skill, registry))
+        else:
+            for port in call.inputs:
+                if port not in registry.get(call.skill).inputs:
+                    at(("expect", "calls", index, "inputs", port), f"skill {call.skill!r} has no input {port!r}")
     for index, condition in enumerate(spec.expect.never):
         try:
             compile_expression(condition)

@@ -229,6 +229,11 @@ def test_every_shipped_scenario_is_deterministic(tmp_path: Path, path: Path) -> 
             "s.yaml:2:23: error: invalid blackboard key 'bad key!': use identifiers separated by '/', "
             "e.g. 'robot/battery_pct'",
         ),
+        ("expect: {calls: [{skill: lgo}]}\n", "s.yaml:2:19: error: unknown skill 'lgo' (did you mean 'log'?)"),
+        (
+            "expect: {calls: [{skill: log, inputs: {mesage: hi}}]}\n",
+            "s.yaml:2:40: error: skill 'log' has no input 'mesage'",
+        ),
         (
             "blackboard: {batery_pct: 1}\n",
             "s.yaml:2:14: error: the mission never reads or writes 'batery_pct' (did you mean 'battery_pct'?)",
