@@ -155,17 +155,27 @@ def _check_keys(mission: Mission, checked: Checked, out: _Collector) -> None:
             except TypeError as exc:
                 out.at(("keys", key, "default"), f"default of {rel!r}: {exc}")
     for key, value in mission.blackboard.items():
+        rel, declared, problem = check_write(key, value, checked.key_types)
+        if rel is None:
+            out.at(("blackboard", key), problem)
+        elif problem:
+            out.at(("blackboard", key), f"initial value of {rel!r} (declared {type_name(declared)}): {problem}")
+
+
+def check_write(key: Any, value: Any, key_types: dict[str, Any]) -> tuple[str | None, Any, str]:
+    """A write of ``value`` to ``key``, checked: (the relative key or None if malformed, its
+    declared type or None, the problem or ''). Mission values and scenario writes both use it."""
+    try:
+        rel = normalise_key(key)
+    except BlackboardError as exc:
+        return None, None, str(exc)
+    declared = key_types.get(rel)
+    if declared is not None:
         try:
-            rel = normalise_key(key)
-        except BlackboardError as exc:
-            out.at(("blackboard", key), str(exc))
-            continue
-        declared = checked.key_types.get(rel)
-        if declared is not None:
-            try:
-                check_type(declared, value)
-            except TypeError as exc:
-                out.at(("blackboard", key), f"initial value of {rel!r} (declared {type_name(declared)}): {exc}")
+            check_type(declared, value)
+        except TypeError as exc:
+            return rel, declared, str(exc)
+    return rel, declared, ""
 
 
 def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collector) -> None:

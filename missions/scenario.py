@@ -42,12 +42,12 @@ from typing import Annotated, Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from behaviors.blackboard import BlackboardError, normalise_key
+from behaviors.blackboard import BlackboardError
 from behaviors.builder import did_you_mean
 from behaviors.engine import Engine
 from missions.loader import Loaded, Location, Problem, load
 from missions.runner import MissionInvalid, RunError, StopRun, run
-from skills.base import Outcome, Skill, SkillContext, SkillRun, check_type, type_name
+from skills.base import Outcome, Skill, SkillContext, SkillRun, type_name
 from skills.expression import EvaluationError, ExpressionError, compile_expression
 from skills.registry import Registry
 
@@ -276,7 +276,7 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
 
 def _check_keys(spec: ScenarioSpec, mission: Path, registry: Registry, at: Any) -> None:
     """Scenario keys must be keys the mission uses, of their declared types."""
-    from missions.check import check
+    from missions.check import check, check_write
 
     checked = check(mission, registry)
     if checked.mission is None:
@@ -286,20 +286,13 @@ def _check_keys(spec: ScenarioSpec, mission: Path, registry: Registry, at: Any) 
     for index, event in enumerate(spec.events):
         writes += [(("events", index, "set", key), key, value) for key, value in event.set.items()]
     for where, key, value in writes:
-        try:
-            rel = normalise_key(key)
-        except BlackboardError as exc:
-            at(where, str(exc))
-            continue
-        if rel not in known:
+        rel, declared, problem = check_write(key, value, checked.key_types)
+        if rel is None:
+            at(where, problem)
+        elif rel not in known:
             at(where, f"the mission never reads or writes {rel!r}", did_you_mean(rel, known))
-            continue
-        declared = checked.key_types.get(rel)
-        if declared is not None:
-            try:
-                check_type(declared, value)
-            except TypeError as exc:
-                at(where, f"{rel!r} is declared {type_name(declared)}: {exc}")
+        elif problem:
+            at(where, f"{rel!r} is declared {type_name(declared)}: {problem}")
 
 
 def _check_call(real: type[Skill], call: Call, where: tuple[str | int, ...], at: Any) -> None:
