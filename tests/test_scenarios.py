@@ -173,6 +173,15 @@ def test_from_trace_without_a_summary_asks_for_the_mission(tmp_path: Path) -> No
     assert result.returncode == 2 and "name the mission with --mission" in result.stderr
 
 
+def test_from_trace_of_a_broken_trace_is_a_clear_error(tmp_path: Path) -> None:
+    (tmp_path / "trace.jsonl").write_text('{"tick": 0, "ev": "skill_start"\nnot json\n')
+    (tmp_path / "summary.json").write_text(json.dumps({"mission_file": str(HELLO)}))
+    result = botstage("scenario", "from-trace", str(tmp_path / "trace.jsonl"), "-o", str(tmp_path / "s.yaml"))
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ") and "Traceback" not in result.stderr
+    assert not (tmp_path / "s.yaml").exists()
+
+
 def test_coverage_counts_and_pictures(tmp_path: Path) -> None:
     cov = tmp_path / "coverage.json"
     result = botstage("test", "missions/scenarios/hello/normal.yaml", "--coverage", "--coverage-file", str(cov))
