@@ -164,10 +164,11 @@ def _picture(
         raise _fail([str(p) for p in checked.problems])
     spec = checked.mission
     assert spec is not None
-    if machine:
-        if spec.machine is None:
-            raise _fail(f"error: {mission} has no machine; draw its trees with `botstage tree`", 2)
-        spec_path: tuple[str, ...] = ("machine",)
+    if machine and spec.machine is None:
+        _stderr([f"note: {mission} has no machine; drawing the tree it runs"])
+        spec_path: tuple[str, ...] = root_spec_path(spec)  # type: ignore[assignment]
+    elif machine:
+        spec_path = ("machine",)
     elif tree is not None:
         if tree not in spec.trees:
             known = ", ".join(spec.trees) or "none"
