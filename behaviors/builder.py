@@ -621,7 +621,9 @@ class Builder:
                 self._use(
                     checked, "write", inputs_path[:-1] + ("outputs", port_name), scope, cls.outputs[port_name].type
                 )
-        success = self._success_on(success_on, cls.all_outcomes, inputs_path[:-1] + ("success_on",))
+        success = self._success_on(
+            success_on, cls.all_outcomes, inputs_path[:-1] + ("success_on",), default=cls.success_outcomes
+        )
         merged = dict(self.skill_params.get(skill_name, {}))
         if params is not None:
             if not isinstance(params, Mapping):
@@ -638,9 +640,11 @@ class Builder:
             return None
         return SkillBehaviour(scope.path.rsplit("/", 1)[-1], scope.path, skill, self.engine, bound, out, success)
 
-    def _success_on(self, value: Any, outcomes: Iterable[str], spec_path: SpecPath) -> frozenset[str] | None:
+    def _success_on(
+        self, value: Any, outcomes: Iterable[str], spec_path: SpecPath, default: Iterable[str] = ("success",)
+    ) -> frozenset[str] | None:
         if value is None:
-            return frozenset({"success"})
+            return frozenset(default)
         names = [value] if isinstance(value, str) else value
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
             self._problem(spec_path, "success_on must be an outcome name or a list of them")

@@ -100,7 +100,7 @@ def _skill(node: SkillBehaviour) -> Item:
     title = skill.name if plain else f"{node.name}: {skill.name}"
     details = [f"{port}={_value(value)}" for port, value in node.inputs.items()]
     details += [f"{port} → {{{key}}}" for port, key in node.outputs.items()]
-    if node.success_on != frozenset({"success"}):
+    if node.success_on != frozenset(skill.success_outcomes):
         details.append("success on " + ", ".join(sorted(node.success_on)))
     return Item(node.path, "condition" if skill.kind == "condition" else "skill", title, details)
 

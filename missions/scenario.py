@@ -56,7 +56,7 @@ class Call(BaseModel):
     """One scripted call of a mocked skill."""
 
     model_config = ConfigDict(extra="forbid")
-    outcome: str = "success"
+    outcome: str | None = Field(default=None, description="default: the skill's success outcome")
     reason: str = ""
     outputs: dict[str, Any] = Field(default_factory=dict)
     duration: float = Field(default=0.0, ge=0, description="sim seconds RUNNING before the outcome")
@@ -166,7 +166,7 @@ def mock_of(real: type[Skill], script: list[Call] | Rule) -> type[Skill]:
             yield
         if call.raises is not None:
             raise RuntimeError(call.raises)
-        return Outcome(call.outcome, call.reason, call.outputs)
+        return Outcome(call.outcome or real.success_outcomes[0], call.reason, call.outputs)
 
     return type(
         f"Mock_{real.__name__}",
@@ -178,6 +178,7 @@ def mock_of(real: type[Skill], script: list[Call] | Rule) -> type[Skill]:
             "inputs": real.inputs,
             "outputs": real.outputs,
             "outcomes": tuple(sorted(real.all_outcomes - {"success", "failure"})),
+            "success_outcomes": real.success_outcomes,
             "Params": real.Params,
             "run": run,
             "__module__": __name__,
@@ -296,7 +297,7 @@ def _check_keys(spec: ScenarioSpec, mission: Path, registry: Registry, at: Any) 
 
 
 def _check_call(real: type[Skill], call: Call, where: tuple[str | int, ...], at: Any) -> None:
-    if call.outcome not in real.all_outcomes:
+    if call.outcome is not None and call.outcome not in real.all_outcomes:
         at(
             where + ("outcome",),
             f"skill {real.name!r} has no outcome {call.outcome!r}",

@@ -230,6 +230,9 @@ class Skill:
     inputs: ClassVar[dict[str, Port]] = {}
     outputs: ClassVar[dict[str, Port]] = {}
     outcomes: ClassVar[tuple[str, ...]] = ()
+    # the outcomes that count as success where the skill runs (a tree node's SUCCESS): a skill
+    # whose own vocabulary is richer (navigate's `succeeded`) names them; nodes may override
+    success_outcomes: ClassVar[tuple[str, ...]] = (SUCCESS,)
     Params: ClassVar[type[BaseModel]] = NoParams
 
     # Filled in by __init_subclass__.
@@ -251,7 +254,9 @@ class Skill:
             problems.append("Params must be a pydantic BaseModel subclass")
         if problems:
             raise TypeError(f"skill class {cls.__qualname__}: " + "; ".join(problems))
-        cls.all_outcomes = frozenset(BASE_OUTCOMES) | frozenset(cls.outcomes)
+        if not cls.success_outcomes:
+            raise TypeError(f"skill class {cls.__qualname__}: success_outcomes must name at least one outcome")
+        cls.all_outcomes = frozenset({FAILURE, *cls.success_outcomes, *cls.outcomes})
         cls.is_generator = inspect.isgeneratorfunction(cls.run)
 
     def __init__(self, params: BaseModel | Mapping[str, Any] | None = None) -> None:
@@ -281,5 +286,6 @@ class Skill:
             "inputs": ports(cls.inputs),
             "outputs": ports(cls.outputs),
             "outcomes": sorted(cls.all_outcomes),
+            "success_outcomes": list(cls.success_outcomes),
             "params": cls.Params.model_json_schema(),
         }
