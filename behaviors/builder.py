@@ -554,7 +554,13 @@ class Builder:
             self._problem(inputs_path, f"inputs of {skill_name!r} must be a mapping of port: value")
             return None
         bound: dict[str, Any] = {}
-        for port_name, raw in inputs.items():
+        # a key-naming port left at its default still names a key: the node needs access to it
+        defaults = {
+            n: p.default
+            for n, p in cls.inputs.items()
+            if p.names_key and isinstance(p.default, str) and n not in inputs
+        }
+        for port_name, raw in {**inputs, **defaults}.items():
             port = cls.inputs.get(port_name)
             if port is None:
                 self._problem(

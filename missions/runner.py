@@ -26,6 +26,7 @@ from behaviors.skill_behaviour import SkillBehaviour
 from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path, start_pose
 from missions.loader import Problem
+from missions.services import RobotServices
 from robots.clock import Clock, SimClock, WallClock
 from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
@@ -121,12 +122,13 @@ def run(
     stopped = ""
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
         sim = _simulator(checked, seed, clock) if backend == "sim" else None
+        services = RobotServices.for_sim(sim, clock) if sim is not None else None
         engine = Engine(
             clock=clock,
             seed=seed,
             trace=Trace(clock, sink, keep=False),
             registry=registry,
-            interfaces=sim.devices if sim is not None else None,
+            interfaces={**sim.devices, **services.interfaces} if sim is not None and services is not None else None,
         )
         try:
             root = build(engine, checked, blackboard)
@@ -141,7 +143,7 @@ def run(
                         snapshot,
                         progress_interval_s,
                         before_tick,
-                        sim.step if sim is not None else None,
+                        services.after_step(sim.step) if sim is not None and services is not None else None,
                     )
             except KeyboardInterrupt:
                 interrupted = True

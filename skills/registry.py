@@ -20,7 +20,18 @@ from importlib.metadata import entry_points
 from skills.base import Skill
 
 ENTRY_POINT_GROUP = "botstage.skills"
-BUILTIN_MODULES = ("skills.wait", "skills.log", "skills.set", "skills.check", "skills.move")
+BUILTIN_MODULES = (
+    "skills.wait",
+    "skills.log",
+    "skills.set",
+    "skills.check",
+    "skills.move",
+    "skills.navigate",
+    "skills.back_to_point",
+    "skills.wander",
+    "skills.approach",
+    "skills.recoveries",
+)
 
 
 class UnknownSkillError(LookupError):

@@ -22,7 +22,7 @@ from robots.sim.devices import (
     SimSonar,
     SimSpeaker,
 )
-from robots.sim.people import Crowd
+from robots.sim.people import PERSON_RADIUS, Crowd
 from robots.sim.world import World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
@@ -44,6 +44,11 @@ class SimBackend:
         self.clock = clock
         self.world = World(grid, profile, start, seed)
         self.crowd = Crowd.populate(grid, self.world.rng, people, avoid=(start.x, start.y))
+        # people are laser returns and obstacles, and keep clear of the robot themselves
+        self.world.movers = self.crowd.positions
+        self.world.mover_radius = PERSON_RADIUS
+        self.crowd.robot = lambda: (self.world.body.pose.x, self.world.body.pose.y)
+        self.crowd.robot_radius = profile.base.footprint_radius
         self.devices: dict[str, Any] = {}
         self.not_simulated: list[str] = []
         makers = {

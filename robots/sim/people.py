@@ -3,13 +3,15 @@
 A person walks in straight lines towards goals on free floor (a new goal when the next step
 would hit something), pauses now and then, and joins a group when one forms. A group of 2 to 6
 meets at a gathering point, each member standing 0.3 to 0.6 m from the point (so every member is
-within 1.5 m of another, the paper's crowd definition), stays a while, then disperses. All
+within 1.5 m of another, the paper's crowd definition), stays a while, then disperses. People
+keep clear of the robot: a step that would touch it waits or goes around. All
 randomness comes from the world's generator: the same seed gives the same people.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,6 +51,8 @@ class Crowd:
     groups: list[Group] = field(default_factory=list)
     next_group_at: float = 5.0
     time: float = 0.0
+    robot: Callable[[], tuple[float, float]] | None = None  # where the robot is, to keep clear of it
+    robot_radius: float = 0.0
     _next_id: int = 1
 
     def __post_init__(self) -> None:
@@ -85,6 +89,22 @@ class Crowd:
     def can_stand(self, x: float, y: float) -> bool:
         row, col = self.grid.cell(x, y)
         return self.grid.inside(row, col) and bool(self.standable[row, col])
+
+    def positions(self) -> np.ndarray:
+        """Everyone's centre, as an (n, 2) array: what the world sees as moving obstacles."""
+        return np.array([(p.x, p.y) for p in self.people], dtype=float).reshape(-1, 2)
+
+    def _clear_of_robot(self, person: Person, x: float, y: float) -> bool:
+        """A step may not bring a person into touch with the robot (stepping away is fine)."""
+        if self.robot is None:
+            return True
+        rx, ry = self.robot()
+        keep = self.robot_radius + PERSON_RADIUS + 0.05
+        after = math.hypot(x - rx, y - ry)
+        return after >= keep or after >= math.hypot(person.x - rx, person.y - ry)
+
+    def _can_step(self, person: Person, x: float, y: float) -> bool:
+        return self.can_stand(x, y) and self._clear_of_robot(person, x, y)
 
     # -- stepping ---------------------------------------------------------------------------
 
@@ -159,8 +179,10 @@ class Crowd:
             return
         stride = min(person.speed * dt, distance)
         nx, ny = person.x + dx / distance * stride, person.y + dy / distance * stride
-        if self.can_stand(nx, ny):
+        if self._can_step(person, nx, ny):
             person.x, person.y = nx, ny
+        elif not self._clear_of_robot(person, nx, ny):
+            person.x, person.y = self._sidestep(person, dx / distance, dy / distance, stride)  # or wait
         elif person.group is None:
             person.goal = self.random_spot()  # blocked: pick somewhere else
         else:
@@ -171,6 +193,6 @@ class Crowd:
         for turn in (math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2):
             c, s = math.cos(turn), math.sin(turn)
             nx, ny = person.x + (c * ux - s * uy) * stride, person.y + (s * ux + c * uy) * stride
-            if self.can_stand(nx, ny):
+            if self._can_step(person, nx, ny):
                 return nx, ny
         return person.x, person.y

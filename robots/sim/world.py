@@ -16,13 +16,17 @@ What it models, and why:
   firmware does.
 - **Battery** drains with the current drawn (idle plus a share of the drive current).
 - **IMU** integrates the true turn rate with a gyro bias and noise.
-- **Laser** ranges by ray casting on the grid, all beams at once with numpy.
+- **Laser** ranges by ray casting on the grid, all beams at once with numpy; people (round
+  ``movers`` the backend attaches) return beams too.
+- **People are obstacles**: the robot may not drive into one. A person who walks into a robot
+  standing still is not the robot's bump (people keep clear of the robot themselves).
 """
 
 from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -75,6 +79,7 @@ class Body:
     right: WheelState = field(default_factory=WheelState)
     bumped: bool = False
     bumps: int = 0
+    person_bumps: int = 0  # of the bumps, those into a person
     yaw_rate: float = 0.0  # true rad/s
     linear: float = 0.0  # true m/s
 
@@ -112,6 +117,9 @@ class World:
         self._command_time = -math.inf
         self.battery_charge_ah = profile.battery.capacity_ah
         self.imu_yaw = start.theta
+        # moving round obstacles (people): their centres as an (n, 2) array, and their radius
+        self.movers: Callable[[], np.ndarray] | None = None
+        self.mover_radius = 0.25
 
     # -- commands -----------------------------------------------------------------------------
 
@@ -155,10 +163,12 @@ class World:
         pose = self._icc(body.pose, d_left, d_right)
         body.bumped = False
         if d_left or d_right:
-            pose, clear = self._clear_part(body.pose, pose, d_left, d_right)
+            movers = self._movers_near(body.pose)
+            pose, clear, into_person = self._clear_part(body.pose, pose, d_left, d_right, movers)
             if not clear:
                 body.bumped = True
                 body.bumps += 1
+                body.person_bumps += into_person
                 body.left.speed = body.right.speed = 0.0
                 self._command = (0.0, 0.0)
         travelled = (d_left, d_right) if not body.bumped else self._travelled(body.pose, pose, d_left, d_right)
@@ -196,16 +206,33 @@ class World:
             float(icc_x + c * dx - s * dy), float(icc_y + s * dx + c * dy), float(_angle(pose.theta + d_theta))
         )
 
-    def _clear_part(self, start: Pose2D, end: Pose2D, d_left: float, d_right: float) -> tuple[Pose2D, bool]:
-        """The last clear pose along the move, sampled finer than a cell; and whether all of it was clear."""
+    def _movers_near(self, pose: Pose2D) -> np.ndarray:
+        """People close enough to touch the robot within this step."""
+        if self.movers is None:
+            return np.empty((0, 2))
+        centres = np.asarray(self.movers(), dtype=float).reshape(-1, 2)
+        reach = self.base.footprint_radius + self.mover_radius + 0.1
+        return centres[np.hypot(centres[:, 0] - pose.x, centres[:, 1] - pose.y) < reach]
+
+    def _clear_part(
+        self, start: Pose2D, end: Pose2D, d_left: float, d_right: float, movers: np.ndarray
+    ) -> tuple[Pose2D, bool, bool]:
+        """The last clear pose along the move, sampled finer than a cell; whether all of it was
+        clear; and whether what stopped it was a person."""
         steps = max(1, math.ceil(max(abs(d_left), abs(d_right)) / (self.grid.resolution / 2)))
+        touch = self.base.footprint_radius + self.mover_radius
         last = start
+        before = np.hypot(movers[:, 0] - start.x, movers[:, 1] - start.y) if len(movers) else None
         for k in range(1, steps + 1):
             pose = self._icc(start, d_left * k / steps, d_right * k / steps)
             if self.collides(pose.x, pose.y):
-                return last, False
+                return last, False, False
+            if before is not None:
+                now = np.hypot(movers[:, 0] - pose.x, movers[:, 1] - pose.y)
+                if bool(np.any((now < touch) & (now < before))):  # moving into someone
+                    return last, False, True
             last = pose
-        return end, True
+        return end, True, False
 
     def _travelled(self, start: Pose2D, end: Pose2D, d_left: float, d_right: float) -> tuple[float, float]:
         full = max(abs(d_left), abs(d_right))
@@ -248,10 +275,29 @@ class World:
             high = np.where(inside, middle, high)
             low = np.where(inside, low, middle)
         ranges = np.where(found, high, np.inf)
+        if self.movers is not None:
+            ranges = np.minimum(ranges, self._mover_ranges(ox, oy, cos, sin, range_max))
         if device.noise:
             ranges = ranges + self.noise("laser").normal(0.0, device.noise, beams)
         ranges[(ranges > range_max) | (ranges < range_min)] = np.inf
         return ranges
+
+    def _mover_ranges(self, ox: float, oy: float, cos: np.ndarray, sin: np.ndarray, range_max: float) -> np.ndarray:
+        """Where each beam first meets a person's circle (inf where it meets none)."""
+        assert self.movers is not None
+        centres = np.asarray(self.movers(), dtype=float).reshape(-1, 2)
+        dx, dy = centres[:, 0] - ox, centres[:, 1] - oy
+        centres = centres[np.hypot(dx, dy) < range_max + self.mover_radius]
+        if not len(centres):
+            return np.full(len(cos), np.inf)
+        dx, dy = centres[:, 0] - ox, centres[:, 1] - oy
+        along = np.outer(cos, dx) + np.outer(sin, dy)  # beams x people
+        off_sq = (dx * dx + dy * dy)[None, :] - along * along
+        r_sq = self.mover_radius * self.mover_radius
+        hit = (off_sq <= r_sq) & (along > 0)
+        entry = along - np.sqrt(np.maximum(r_sq - off_sq, 0.0))
+        entry = np.where(hit & (entry > 0), entry, np.inf)
+        return entry.min(axis=1)
 
     def padded_cells(self, xs: np.ndarray | float, ys: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """Cells of the padded hit grid for world points, the map's origin yaw included; points

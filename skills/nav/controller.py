@@ -33,7 +33,8 @@ class FollowerParams:
     robot_radius: float = 0.2
     stop_clearance: float = 0.12  # m beyond the robot's radius
     slow_clearance: float = 0.6
-    laser_x: float = 0.0  # m: where the laser sits ahead of the base's centre
+    laser_x: float = 0.0  # m: where the laser sits ahead of the base's centre (for a LaserScan)
+    max_decel: float = 0.5  # m/s²: never faster than can stop before what is ahead
 
 
 @dataclass(frozen=True)
@@ -57,7 +58,9 @@ class PathFollower:
         self.params = params
         self._progress = 0  # index of the path point closest to the robot so far (never goes back)
 
-    def command(self, pose: Pose2D, scan: LaserScan | None = None) -> Command:
+    def command(self, pose: Pose2D, obstacles: LaserScan | np.ndarray | None = None) -> Command:
+        """The velocity for this tick. ``obstacles``: a laser scan (mounted ``laser_x`` ahead of the
+        base's centre) or sensed points in the base frame (x ahead, y left)."""
         p = self.params
         gx, gy = self.path[-1]
         to_goal = math.hypot(gx - pose.x, gy - pose.y)
@@ -81,12 +84,15 @@ class PathFollower:
         if abs(curvature) > 1.0 / p.min_turning_radius:
             v *= 1.0 / (p.min_turning_radius * abs(curvature))
         v = min(v, max(p.min_linear, p.max_linear * to_goal / p.slow_near_goal))
-        if scan is not None:
-            clearance = _clearance_along(scan, curvature, p)
+        if obstacles is not None:
+            points = obstacles.points() + np.array([p.laser_x, 0.0]) if isinstance(obstacles, LaserScan) else obstacles
+            clearance = _clearance_along(points, curvature, p)
             if clearance < p.stop_clearance:
                 return Command(0.0, 0.0, "blocked", f"an obstacle {clearance + p.robot_radius:.2f} m ahead")
             if clearance < p.slow_clearance:
                 v *= max(0.2, (clearance - p.stop_clearance) / (p.slow_clearance - p.stop_clearance))
+            if math.isfinite(clearance):  # able to stop in what is left, whatever else the rules say
+                v = min(v, max(p.min_linear, math.sqrt(2 * p.max_decel * max(clearance - p.stop_clearance, 0.0))))
         w = v * curvature
         if abs(w) > p.max_angular:
             v *= p.max_angular / abs(w)
@@ -104,13 +110,15 @@ class PathFollower:
         return float(path[index, 0]), float(path[index, 1])
 
 
-def _clearance_along(scan: LaserScan, curvature: float, p: FollowerParams) -> float:
-    """How far the robot can go along the commanded arc before its footprint touches a return."""
-    points = scan.points()
+def _clearance_along(points: np.ndarray, curvature: float, p: FollowerParams) -> float:
+    """How far the robot can go along the commanded arc before its footprint touches a point
+    (base frame), looking as far as it needs to stop from its top speed."""
     if len(points) == 0:
         return math.inf
-    points = points + np.array([p.laser_x, 0.0])  # into the base frame
-    horizon = p.slow_clearance + p.robot_radius
+    horizon = max(p.slow_clearance, p.stop_clearance + p.max_linear**2 / (2 * p.max_decel)) + p.robot_radius
+    points = points[np.hypot(points[:, 0], points[:, 1]) <= horizon + p.robot_radius]
+    if len(points) == 0:
+        return math.inf
     s = np.arange(0.0, horizon + 0.05, 0.05)
     if abs(curvature) < 1e-6:
         arc = np.column_stack((s, np.zeros_like(s)))

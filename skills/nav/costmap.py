@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import distance_transform_edt
 
 from robots.gridmap import FREE, GridMap
 
@@ -17,18 +18,9 @@ LETHAL = math.inf
 
 
 def _distance_to_blocked(blocked: np.ndarray, max_cells: int) -> np.ndarray:
-    """Distance in cells from each cell to the nearest blocked one, up to ``max_cells`` (inf beyond)."""
-    distance = np.full(blocked.shape, np.inf)
-    distance[blocked] = 0.0
-    rows, cols = blocked.shape
-    for dr in range(-max_cells, max_cells + 1):
-        for dc in range(-max_cells, max_cells + 1):
-            d = math.hypot(dr, dc)
-            if d > max_cells or d == 0:
-                continue
-            target = distance[max(dr, 0) : rows + min(dr, 0), max(dc, 0) : cols + min(dc, 0)]
-            source = blocked[max(-dr, 0) : rows + min(-dr, 0), max(-dc, 0) : cols + min(-dc, 0)]
-            np.minimum(target, np.where(source, d, np.inf), out=target)
+    """Euclidean distance in cells from each cell to the nearest blocked one (inf beyond ``max_cells``)."""
+    distance = distance_transform_edt(~blocked)
+    distance[distance > max_cells] = np.inf
     return distance
 
 

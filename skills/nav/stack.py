@@ -1,0 +1,221 @@
+"""One robot's navigation stack: its map, costmaps, planner, range sensors and pose estimate.
+
+The navigation skills (navigate, wander, approach, back_to_point and the recoveries) share one
+stack per robot, so what one of them saw (an obstacle that is not on the map) the next one
+plans around, and `clear_costmap` clears it for all. The stack holds:
+
+- the **static costmap**: the map's obstacles inflated by the robot's radius (computed once per
+  map and radius, and cached);
+- an **obstacle layer**: cells where the laser or the sonar saw something, stamped with the
+  time; they count as obstacles for ``obstacle_memory`` seconds (people walk away);
+- the **pose** from the localiser (or raw odometry on a robot without one);
+- the robot's limits from its profile, for the path follower.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import binary_dilation
+
+from robots.clock import Clock
+from robots.gridmap import GridMap
+from robots.interfaces import LaserScan, Pose2D, SonarReading
+from robots.profile import Profile
+from skills.nav.controller import FollowerParams
+from skills.nav.costmap import LETHAL, inflated_costs
+from skills.nav.planner import Plan, Planner
+
+_COSTS: dict[tuple[bytes, float, float], np.ndarray] = {}
+
+
+def static_costs(grid: GridMap, robot_radius: float) -> np.ndarray:
+    """The inflated costmap of a map for a robot radius, computed once per process."""
+    key = (hashlib.sha1(grid.data.tobytes() + repr(grid.data.shape).encode()).digest(), grid.resolution, robot_radius)
+    costs = _COSTS.get(key)
+    if costs is None:
+        if len(_COSTS) > 8:
+            _COSTS.clear()
+        costs = _COSTS[key] = inflated_costs(grid, robot_radius)
+        costs.setflags(write=False)
+    return costs
+
+
+@dataclass(frozen=True)
+class Limits:
+    max_linear: float
+    max_angular: float
+    max_accel: float
+
+
+def _to_base(points: np.ndarray, mount: tuple[float, float, float]) -> np.ndarray:
+    mx, my, mtheta = mount
+    c, s = math.cos(mtheta), math.sin(mtheta)
+    return np.column_stack((mx + c * points[:, 0] - s * points[:, 1], my + s * points[:, 0] + c * points[:, 1]))
+
+
+def sonar_points(reading: SonarReading, rays: int = 5) -> np.ndarray:
+    """An echo as a short arc across the cone at its range: the sonar cannot tell where in it."""
+    if not math.isfinite(reading.range) or reading.range >= reading.max_range:
+        return np.empty((0, 2))
+    angles = np.linspace(-reading.field_of_view / 2, reading.field_of_view / 2, rays)
+    return np.column_stack((reading.range * np.cos(angles), reading.range * np.sin(angles)))
+
+
+class NavStack:
+    def __init__(
+        self,
+        grid: GridMap,
+        robot_radius: float,
+        pose: Callable[[], Pose2D],
+        clock: Clock,
+        limits: Limits,
+        *,
+        laser: Any = None,
+        laser_mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        sonar: Any = None,
+        sonar_mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        obstacle_memory: float = 8.0,
+    ) -> None:
+        self.grid = grid
+        self.places: Mapping[str, tuple[float, float, float]] = grid.places
+        self.robot_radius = robot_radius
+        self.clock = clock
+        self.limits = limits
+        self._pose = pose
+        self.laser, self.laser_mount = laser, laser_mount
+        self.sonar, self.sonar_mount = sonar, sonar_mount
+        self.obstacle_memory = obstacle_memory
+        self.static = static_costs(grid, robot_radius)
+        self.planner = Planner(grid, self.static)
+        self._seen_at = np.full(grid.data.shape, -np.inf)
+        radius_cells = math.ceil(robot_radius / grid.resolution)
+        yy, xx = np.mgrid[-radius_cells : radius_cells + 1, -radius_cells : radius_cells + 1]
+        self._disk = xx * xx + yy * yy <= radius_cells * radius_cells
+        self._obstacles_at = -1
+        self._obstacles = np.empty((0, 2))
+        self.plans = 0
+
+    @classmethod
+    def for_robot(
+        cls, profile: Profile, devices: Mapping[str, Any], grid: GridMap, clock: Clock, pose: Callable[[], Pose2D]
+    ) -> NavStack:
+        base, interfaces = profile.base, profile.interfaces
+        return cls(
+            grid,
+            base.footprint_radius,
+            pose,
+            clock,
+            Limits(base.max_linear, base.max_angular, base.max_linear_accel),
+            laser=devices.get("laser"),
+            laser_mount=interfaces["laser"].pose if "laser" in interfaces else (0.0, 0.0, 0.0),
+            sonar=devices.get("sonar"),
+            sonar_mount=interfaces["sonar"].pose if "sonar" in interfaces else (0.0, 0.0, 0.0),
+        )
+
+    # -- where the robot is, what it sees ---------------------------------------------------
+
+    def pose(self) -> Pose2D:
+        return self._pose()
+
+    def obstacles(self) -> np.ndarray:
+        """What the range sensors see now, as points in the base frame (x ahead, y left); read
+        once per tick however many callers ask."""
+        tick = getattr(self.clock, "ticks", None)
+        if tick is not None and tick == self._obstacles_at:
+            return self._obstacles
+        parts = []
+        if self.laser is not None:
+            scan: LaserScan = self.laser.scan()
+            parts.append(_to_base(scan.points(), self.laser_mount))
+        if self.sonar is not None:
+            parts.append(_to_base(sonar_points(self.sonar.read()), self.sonar_mount))
+        self._obstacles = np.concatenate(parts) if parts else np.empty((0, 2))
+        self._obstacles_at = tick if tick is not None else -1
+        return self._obstacles
+
+    def follower_params(self, tolerance: float, heading_tolerance: float, max_speed: float | None) -> FollowerParams:
+        limits = self.limits
+        return FollowerParams(
+            max_linear=min(limits.max_linear, max_speed) if max_speed else limits.max_linear,
+            max_angular=min(limits.max_angular, 1.5),
+            goal_tolerance=tolerance,
+            heading_tolerance=heading_tolerance,
+            robot_radius=self.robot_radius,
+            max_decel=limits.max_accel,
+        )
+
+    # -- the obstacle layer -----------------------------------------------------------------
+
+    def mark(self, pose: Pose2D, points: np.ndarray, within: float = 3.0) -> int:
+        """Stamp what the sensors see near the robot into the obstacle layer; returns the cells."""
+        if not len(points):
+            return 0
+        points = points[np.hypot(points[:, 0], points[:, 1]) <= within]
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        xs = pose.x + c * points[:, 0] - s * points[:, 1]
+        ys = pose.y + s * points[:, 0] + c * points[:, 1]
+        cells = [self.grid.cell(float(x), float(y)) for x, y in zip(xs, ys, strict=True)]
+        cells = [(r, col) for r, col in cells if self.grid.inside(r, col)]
+        if cells:
+            rows, cols = np.array(cells).T
+            self._seen_at[rows, cols] = self.clock.now()
+        return len(cells)
+
+    def clear(self) -> None:
+        """Forget every obstacle seen (the `clear_costmap` recovery)."""
+        self._seen_at[:] = -np.inf
+
+    def seen(self) -> np.ndarray:
+        """Cells that hold an obstacle seen within the memory."""
+        return self._seen_at >= self.clock.now() - self.obstacle_memory
+
+    def costs(self) -> np.ndarray:
+        seen = self.seen()
+        if not seen.any():
+            return self.static
+        costs = self.static.copy()
+        costs[binary_dilation(seen, structure=self._disk)] = LETHAL
+        return costs
+
+    def plan(self, start: tuple[float, float], goal: tuple[float, float]) -> Plan:
+        """A path on the static map plus what was seen (raises Unreachable)."""
+        self.plans += 1
+        seen = self.seen()
+        if not seen.any():
+            return self.planner.plan(start, goal)
+        costs = self.costs()
+        row, col = self.grid.cell(*start)
+        if self.grid.inside(row, col) and not math.isfinite(costs[row, col]):
+            # the robot stands in what it saw (a person right beside it): free its own cell's disk
+            r0, c0 = max(row - 2, 0), max(col - 2, 0)
+            costs[r0 : row + 3, c0 : col + 3] = self.static[r0 : row + 3, c0 : col + 3]
+        return Planner(self.grid, costs).plan(start, goal)
+
+    def free(self, x: float, y: float) -> bool:
+        """Whether the robot's centre may stand here (static map and what was seen)."""
+        row, col = self.grid.cell(x, y)
+        if not self.grid.inside(row, col) or not math.isfinite(self.static[row, col]):
+            return False
+        return not self.seen()[
+            max(row - self._disk.shape[0] // 2, 0) : row + self._disk.shape[0] // 2 + 1,
+            max(col - self._disk.shape[1] // 2, 0) : col + self._disk.shape[1] // 2 + 1,
+        ].any()
+
+    def resolve(self, goal: str | list[float] | tuple[float, ...]) -> tuple[float, float, float | None]:
+        """A place name or [x, y] / [x, y, theta] as a goal; raises ValueError with what is known."""
+        if isinstance(goal, str):
+            if goal not in self.places:
+                known = ", ".join(sorted(self.places)) or "none on this map"
+                raise ValueError(f"unknown place {goal!r} (places: {known})")
+            x, y, theta = self.places[goal]
+            return x, y, theta
+        values = [float(v) for v in goal]
+        if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+            raise ValueError(f"a goal is a place name, [x, y] or [x, y, theta], got {goal!r}")
+        return values[0], values[1], values[2] if len(values) == 3 else None
