@@ -33,6 +33,14 @@ class Base(_Strict):
     max_angular: float = Field(gt=0, description="rad/s")
     max_linear_accel: float = Field(default=0.5, gt=0, description="m/s²")
     max_angular_accel: float = Field(default=2.0, gt=0, description="rad/s²")
+    max_linear_decel: float | None = Field(
+        default=None, gt=0, description="m/s² when slowing down (motor braking); default: max_linear_accel"
+    )
+
+    @property
+    def braking(self) -> float:
+        return self.max_linear_decel or self.max_linear_accel
+
     encoder_ticks_per_rev: int = Field(gt=0, description="encoder counts per wheel revolution")
     mass: float = Field(gt=0, description="kg, without payload")
     payload: float = Field(default=0.0, ge=0, description="kg, the most it carries")

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from skills.base import In, Outcome, Skill, SkillContext, SkillRun
 from skills.nav.navigator import OUTCOMES, NavParams, drive_to
 from skills.navigate import CANCEL, NAV_OUTPUTS, cancel_condition, nav_outcome, nav_stack
@@ -41,7 +43,7 @@ class Approach(Skill):
         pose = stack.pose()
         spot = self._spot(ctx, tx, ty, standoff, (pose.x, pose.y))
         if spot is None:
-            return Outcome("unreachable", f"no free spot within {2 * standoff:.1f} m of ({tx:.2f}, {ty:.2f})")
+            return Outcome("unreachable", f"no free spot within {standoff + 1.5:.1f} m of ({tx:.2f}, {ty:.2f})")
         heading = math.atan2(ty - spot[1], tx - spot[0])
         if math.hypot(spot[0] - pose.x, spot[1] - pose.y) <= tolerance:
             spot = (pose.x, pose.y)  # already there: only turn to face it
@@ -64,10 +66,10 @@ class Approach(Skill):
     ) -> tuple[float, float] | None:
         stack = nav_stack(ctx)
         towards = math.atan2(robot[1] - ty, robot[0] - tx)
-        for radius in (standoff, standoff * 1.25, standoff * 1.5, standoff * 2):
+        for radius in standoff + 0.25 * np.arange(7):  # then wider, up to 1.5 m further out
             for k in range(0, 37):  # 0, +10°, -10°, +20°, ... round the circle from the robot's side
                 angle = towards + math.radians(10 * ((k + 1) // 2) * (1 if k % 2 else -1))
-                x, y = tx + radius * math.cos(angle), ty + radius * math.sin(angle)
-                if stack.free(x, y):
+                x, y = tx + float(radius) * math.cos(angle), ty + float(radius) * math.sin(angle)
+                if stack.free(x, y, margin=0.2):  # room to stop there short of what it faces
                     return x, y
         return None

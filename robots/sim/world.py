@@ -155,8 +155,9 @@ class World:
     def step(self, dt: float) -> None:
         body, base = self.body, self.base
         target_left, target_right = self.wheel_targets()
-        limit = base.max_linear_accel * dt
         for wheel, target in ((body.left, target_left), (body.right, target_right)):
+            slowing = abs(target) < abs(wheel.speed) and target * wheel.speed >= 0
+            limit = (base.braking if slowing else base.max_linear_accel) * dt
             wheel.speed += max(-limit, min(limit, target - wheel.speed))
         slip = 1.0 + self.rng.normal(0.0, self.slip_std, 2)
         d_left, d_right = float(body.left.speed * dt * slip[0]), float(body.right.speed * dt * slip[1])

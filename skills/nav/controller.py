@@ -31,10 +31,13 @@ class FollowerParams:
     min_turning_radius: float = 0.4  # m: slow down on curves tighter than this
     rotate_threshold: float = math.radians(60)  # turn in place when the path is this far off
     robot_radius: float = 0.2
-    stop_clearance: float = 0.12  # m beyond the robot's radius
-    slow_clearance: float = 0.6
+    margin: float = 0.05  # m kept free around the footprint: never squeeze through a gap the exact width
+    stop_clearance: float = 0.25  # m beyond the robot's radius: room left to turn away
+    slow_clearance: float = 0.8
     laser_x: float = 0.0  # m: where the laser sits ahead of the base's centre (for a LaserScan)
     max_decel: float = 0.5  # m/s²: never faster than can stop before what is ahead
+    evade: bool = True  # try other arcs when blocked: only with sensors that see the sides (a laser)
+    caution_gain: float = 0.35  # 1/s: near something not on the map (people), at most this x its distance
 
 
 @dataclass(frozen=True)
@@ -58,9 +61,13 @@ class PathFollower:
         self.params = params
         self._progress = 0  # index of the path point closest to the robot so far (never goes back)
 
-    def command(self, pose: Pose2D, obstacles: LaserScan | np.ndarray | None = None) -> Command:
+    def command(
+        self, pose: Pose2D, obstacles: LaserScan | np.ndarray | None = None, unmapped: float = math.inf
+    ) -> Command:
         """The velocity for this tick. ``obstacles``: a laser scan (mounted ``laser_x`` ahead of the
-        base's centre) or sensed points in the base frame (x ahead, y left)."""
+        base's centre) or sensed points in the base frame (x ahead, y left). ``unmapped``: how far
+        the nearest thing the map does not have is (a person may step out of it): the robot
+        keeps to a speed it can stop from well before it."""
         p = self.params
         gx, gy = self.path[-1]
         to_goal = math.hypot(gx - pose.x, gy - pose.y)
@@ -82,13 +89,19 @@ class PathFollower:
         curvature = 2.0 * left / distance_sq if distance_sq > 1e-9 else 0.0
         v = p.max_linear
         if abs(curvature) > 1.0 / p.min_turning_radius:
-            v *= 1.0 / (p.min_turning_radius * abs(curvature))
+            v = max(p.min_linear, v / (p.min_turning_radius * abs(curvature)))
         v = min(v, max(p.min_linear, p.max_linear * to_goal / p.slow_near_goal))
+        if math.isfinite(unmapped):
+            v = min(v, max(p.min_linear, p.caution_gain * (unmapped - p.robot_radius)))
         if obstacles is not None:
             points = obstacles.points() + np.array([p.laser_x, 0.0]) if isinstance(obstacles, LaserScan) else obstacles
             clearance = _clearance_along(points, curvature, p)
+            if clearance > to_goal + 0.02:
+                clearance = math.inf  # the goal comes first: stopping there, short of what is seen
             if clearance < p.stop_clearance:
-                return Command(0.0, 0.0, "blocked", f"an obstacle {clearance + p.robot_radius:.2f} m ahead")
+                return (self._evade(points, bearing) if p.evade else None) or Command(
+                    0.0, 0.0, "blocked", f"an obstacle {clearance + p.robot_radius:.2f} m ahead"
+                )
             if clearance < p.slow_clearance:
                 v *= max(0.2, (clearance - p.stop_clearance) / (p.slow_clearance - p.stop_clearance))
             if math.isfinite(clearance):  # able to stop in what is left, whatever else the rules say
@@ -98,6 +111,24 @@ class PathFollower:
             v *= p.max_angular / abs(w)
             w = math.copysign(p.max_angular, w)
         return Command(v, w, "following")
+
+    def _evade(self, points: np.ndarray, bearing: float) -> Command | None:
+        """The pursuit arc is blocked (a person stepped in, the path passes close): the clear arc
+        that turns most nearly towards the path, slowly; else turn in place towards the path."""
+        p = self.params
+        best: tuple[float, float] | None = None
+        for curvature in np.linspace(-1 / p.min_turning_radius, 1 / p.min_turning_radius, 13):
+            if _clearance_along(points, float(curvature), p) < p.stop_clearance + 0.15:
+                continue
+            miss = abs(float(curvature) * 0.5 - bearing)  # heading after half a metre vs the path's
+            if best is None or miss < best[0]:
+                best = (miss, float(curvature))
+        if best is not None and best[0] < math.pi / 2:
+            v = max(p.min_linear, min(0.15, p.max_linear))
+            return Command(v, v * best[1], "evading")
+        if abs(bearing) > math.radians(20):
+            return Command(0.0, _clamp(2.0 * bearing, p.max_angular, minimum=0.3), "rotating")
+        return None
 
     def _lookahead_point(self, pose: Pose2D) -> tuple[float, float]:
         path, p = self.path, self.params
@@ -124,7 +155,10 @@ def _clearance_along(points: np.ndarray, curvature: float, p: FollowerParams) ->
         arc = np.column_stack((s, np.zeros_like(s)))
     else:
         arc = np.column_stack((np.sin(curvature * s) / curvature, (1 - np.cos(curvature * s)) / curvature))
-    near = np.hypot(points[None, :, 0] - arc[:, None, 0], points[None, :, 1] - arc[:, None, 1]) < p.robot_radius
+    reach = p.robot_radius + p.margin
+    distance = np.hypot(points[None, :, 0] - arc[:, None, 0], points[None, :, 1] - arc[:, None, 1])
+    # touching is coming closer than the margin: moving away from something already near is fine
+    near = (distance < reach) & (distance < distance[:1] - 1e-6)
     touching = np.nonzero(near.any(axis=1))[0]
     return float(s[touching[0]]) if len(touching) else math.inf
 

@@ -102,7 +102,8 @@ def drive_to(
             pose = stack.pose()
             travelled += math.hypot(pose.x - last.x, pose.y - last.y)
             last = pose
-            command = follower.command(pose, stack.obstacles())
+            obstacles = stack.obstacles()
+            command = follower.command(pose, obstacles, stack.unmapped_distance(obstacles))
             if command.state == "arrived":
                 drive.stop()
                 return result("succeeded", f"at ({pose.x:.2f}, {pose.y:.2f}) after {travelled:.1f} m")

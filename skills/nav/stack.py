@@ -8,6 +8,8 @@ plans around, and `clear_costmap` clears it for all. The stack holds:
   map and radius, and cached);
 - an **obstacle layer**: cells where the laser or the sonar saw something, stamped with the
   time; they count as obstacles for ``obstacle_memory`` seconds (people walk away);
+- what the sensors saw in the last ``recent_s`` seconds near the robot: the laser looks ahead,
+  so a person the robot is passing is beside it, out of the beam, but still in the way;
 - the **pose** from the localiser (or raw odometry on a robot without one);
 - the robot's limits from its profile, for the path follower.
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -24,7 +27,7 @@ import numpy as np
 from scipy.ndimage import binary_dilation
 
 from robots.clock import Clock
-from robots.gridmap import GridMap
+from robots.gridmap import FREE, GridMap
 from robots.interfaces import LaserScan, Pose2D, SonarReading
 from robots.profile import Profile
 from skills.nav.controller import FollowerParams
@@ -81,6 +84,7 @@ class NavStack:
         sonar: Any = None,
         sonar_mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
         obstacle_memory: float = 8.0,
+        recent_s: float = 2.0,
     ) -> None:
         self.grid = grid
         self.places: Mapping[str, tuple[float, float, float]] = grid.places
@@ -93,12 +97,16 @@ class NavStack:
         self.obstacle_memory = obstacle_memory
         self.static = static_costs(grid, robot_radius)
         self.planner = Planner(grid, self.static)
+        # cells within 15 cm of the map's obstacles: a return there is the map, not a person
+        self._near_mapped = binary_dilation(grid.data != FREE, iterations=max(1, round(0.15 / grid.resolution)))
         self._seen_at = np.full(grid.data.shape, -np.inf)
         radius_cells = math.ceil(robot_radius / grid.resolution)
         yy, xx = np.mgrid[-radius_cells : radius_cells + 1, -radius_cells : radius_cells + 1]
         self._disk = xx * xx + yy * yy <= radius_cells * radius_cells
         self._obstacles_at = -1
         self._obstacles = np.empty((0, 2))
+        self.recent_s = recent_s
+        self._recent: deque[tuple[float, np.ndarray]] = deque()  # (time, world points near the robot)
         self.plans = 0
 
     @classmethod
@@ -111,7 +119,7 @@ class NavStack:
             base.footprint_radius,
             pose,
             clock,
-            Limits(base.max_linear, base.max_angular, base.max_linear_accel),
+            Limits(base.max_linear, base.max_angular, base.braking),
             laser=devices.get("laser"),
             laser_mount=interfaces["laser"].pose if "laser" in interfaces else (0.0, 0.0, 0.0),
             sonar=devices.get("sonar"),
@@ -124,8 +132,8 @@ class NavStack:
         return self._pose()
 
     def obstacles(self) -> np.ndarray:
-        """What the range sensors see now, as points in the base frame (x ahead, y left); read
-        once per tick however many callers ask."""
+        """What the range sensors see now and saw close by in the last ``recent_s`` seconds, as
+        points in the base frame (x ahead, y left); read once per tick however many ask."""
         tick = getattr(self.clock, "ticks", None)
         if tick is not None and tick == self._obstacles_at:
             return self._obstacles
@@ -135,9 +143,53 @@ class NavStack:
             parts.append(_to_base(scan.points(), self.laser_mount))
         if self.sonar is not None:
             parts.append(_to_base(sonar_points(self.sonar.read()), self.sonar_mount))
-        self._obstacles = np.concatenate(parts) if parts else np.empty((0, 2))
+        now_points = np.concatenate(parts) if parts else np.empty((0, 2))
+        pose, now = self.pose(), self.clock.now()
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        near = now_points[np.hypot(now_points[:, 0], now_points[:, 1]) < 1.2]
+        recent = self._recent
+        while recent and recent[0][0] < now - self.recent_s:
+            recent.popleft()
+        remembered = [points for _, points in recent]
+        if len(near):
+            recent.append(
+                (
+                    now,
+                    np.column_stack(
+                        (pose.x + c * near[:, 0] - s * near[:, 1], pose.y + s * near[:, 0] + c * near[:, 1])
+                    ),
+                )
+            )
+        if remembered:
+            world = np.concatenate(remembered)
+            dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
+            now_points = np.concatenate((now_points, np.column_stack((c * dx + s * dy, -s * dx + c * dy))))
+        self._obstacles = now_points
         self._obstacles_at = tick if tick is not None else -1
         return self._obstacles
+
+    def unmapped_distance(self, points: np.ndarray, reach: float = 2.5) -> float:
+        """Distance to the nearest sensed point (base frame, not behind the robot) that is not on
+        the map: people, bags, a door left open. The follower slows near them."""
+        if not len(points):
+            return math.inf
+        distance = np.hypot(points[:, 0], points[:, 1])
+        keep = (distance < reach) & (points[:, 0] > -self.robot_radius)
+        if not keep.any():
+            return math.inf
+        points, distance = points[keep], distance[keep]
+        pose = self.pose()
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        xs = pose.x + c * points[:, 0] - s * points[:, 1]
+        ys = pose.y + s * points[:, 0] + c * points[:, 1]
+        on_map = self._near_mapped[self._cells(xs, ys)]
+        return float(distance[~on_map].min()) if (~on_map).any() else math.inf
+
+    def _cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ox, oy, _ = self.grid.origin
+        rows = np.clip(np.floor((ys - oy) / self.grid.resolution).astype(int), 0, self.grid.data.shape[0] - 1)
+        cols = np.clip(np.floor((xs - ox) / self.grid.resolution).astype(int), 0, self.grid.data.shape[1] - 1)
+        return rows, cols
 
     def follower_params(self, tolerance: float, heading_tolerance: float, max_speed: float | None) -> FollowerParams:
         limits = self.limits
@@ -148,6 +200,7 @@ class NavStack:
             heading_tolerance=heading_tolerance,
             robot_radius=self.robot_radius,
             max_decel=limits.max_accel,
+            evade=self.laser is not None,  # a sonar's narrow cone cannot tell whether the side is clear
         )
 
     # -- the obstacle layer -----------------------------------------------------------------
@@ -197,8 +250,13 @@ class NavStack:
             costs[r0 : row + 3, c0 : col + 3] = self.static[r0 : row + 3, c0 : col + 3]
         return Planner(self.grid, costs).plan(start, goal)
 
-    def free(self, x: float, y: float) -> bool:
-        """Whether the robot's centre may stand here (static map and what was seen)."""
+    def free(self, x: float, y: float, margin: float = 0.0) -> bool:
+        """Whether the robot's centre may stand here (static map and what was seen), with
+        ``margin`` metres to spare all round."""
+        if margin > 0:
+            return all(
+                self.free(x + margin * math.cos(a), y + margin * math.sin(a)) for a in np.linspace(0, 2 * math.pi, 9)
+            ) and self.free(x, y)
         row, col = self.grid.cell(x, y)
         if not self.grid.inside(row, col) or not math.isfinite(self.static[row, col]):
             return False

@@ -1,0 +1,90 @@
+"""Skills on the simulated robot without a mission: a world, the run's services and a context."""
+
+from __future__ import annotations
+
+import random
+from typing import Any
+
+from missions.services import RobotServices
+from robots.clock import SimClock
+from robots.gridmap import GridMap
+from robots.gridmap import load as load_map
+from robots.interfaces import Pose2D
+from robots.profile import load_profile
+from robots.sim.backend import SimBackend, map_path
+from skills.base import Outcome, Skill, SkillContext, SkillLogger
+from skills.execution import SkillExecution
+from skills.workers import Workers
+
+MAPS: dict[str, GridMap] = {}
+
+
+class Board:
+    def __init__(self) -> None:
+        self.values: dict[str, Any] = {}
+
+    def get(self, key: str) -> Any:
+        return self.values[key]
+
+    def set(self, key: str, value: Any) -> None:
+        self.values[key] = value
+
+    def exists(self, key: str) -> bool:
+        return key in self.values
+
+
+def grid(name: str) -> GridMap:
+    if name not in MAPS:
+        MAPS[name] = load_map(map_path(name))  # type: ignore[arg-type]
+    return MAPS[name]
+
+
+class NavSim:
+    def __init__(
+        self, world: str | GridMap, robot: str, start: str | tuple[float, float, float], seed: int = 0, people: int = 0
+    ) -> None:
+        profile, problems, _ = load_profile(f"robots/profiles/{robot}.yaml")
+        assert profile is not None, problems
+        self.grid = grid(world) if isinstance(world, str) else world
+        pose = self.grid.places[start] if isinstance(start, str) else start
+        self.clock = SimClock(10)
+        self.sim = SimBackend(profile, self.grid, Pose2D(*pose), seed, self.clock, people=people)
+        self.services = RobotServices.for_sim(self.sim, self.clock)
+        self.step = self.services.after_step(self.sim.step)
+        self.board = Board()
+        self.logs: list[str] = []
+        self.rng = random.Random(seed)
+        self.before_step: list[Any] = []  # callables run every tick (scripted people)
+
+    @property
+    def stack(self) -> Any:
+        return self.services.interfaces["navigation"]
+
+    @property
+    def truth(self) -> Pose2D:
+        return self.sim.world.body.pose
+
+    def context(self, skill: Skill) -> SkillContext:
+        return SkillContext(
+            clock=self.clock,
+            params=skill.params,
+            logger=SkillLogger(skill.name, sink=lambda node, level, message: self.logs.append(f"{level}: {message}")),
+            blackboard=self.board,
+            workers=Workers(),
+            interfaces={**self.sim.devices, **self.services.interfaces},
+            rng=self.rng,
+        )
+
+    def run(self, skill: Skill, limit: float = 600.0, **inputs: Any) -> Outcome:
+        """Run a skill to its end (at most ``limit`` sim seconds), the world moving every tick."""
+        execution = SkillExecution(skill, self.context(skill))
+        outcome = execution.start(inputs)
+        deadline = self.clock.now() + limit
+        while outcome is None:
+            assert self.clock.now() < deadline, f"{skill.name} still running after {limit} s"
+            for hook in self.before_step:
+                hook(self)
+            self.step()
+            self.clock.next_tick()
+            outcome = execution.step()
+        return outcome
