@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -41,7 +42,7 @@ def test_navigate_reaches_every_place_from_every_other(world: str, robot: str) -
     assert len(walk) - 1 == len(names) * (len(names) - 1)
     sim = NavSim(world, robot, walk[0], seed=3)
     missed = []
-    for a, b in zip(walk, walk[1:], strict=False):
+    for a, b in itertools.pairwise(walk):
         outcome = sim.run(Navigate(), goal=b)
         gx, gy, gtheta = sim.grid.places[b]
         truth = sim.truth
