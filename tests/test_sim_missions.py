@@ -97,3 +97,20 @@ def test_move_without_a_drive_fails_with_a_reason(tmp_path: Path) -> None:
     result = run(mission(tmp_path, "trees: {main: {move: {v: 0.1, duration: 1}}}\n"), out=tmp_path / "run")
     assert result.outcome == "failure"
     assert "this robot has no 'drive' interface" in result.reason
+
+
+@pytest.mark.parametrize("name", ["museum_patrol", "restaurant_patrol"])
+def test_patrol_missions_complete_with_the_trajectory_in_the_report(tmp_path: Path, name: str) -> None:
+    result = run(f"missions/{name}.yaml", out=tmp_path)
+    assert result.outcome == "success", result.reason
+    sim = result.summary["sim"]
+    assert sim["bumps"] == 0
+    assert sim["distance_m"] > 30
+    navigations = result.summary["skill_outcomes"].get("navigate", {})
+    if name == "museum_patrol":
+        assert result.summary["counters"]["visited"] >= 12  # of 14: people may stand on a checkpoint
+        assert navigations == {"succeeded": 1}  # back to the entrance
+    else:
+        assert navigations == {"succeeded": 8}  # every leg, no recovery needed with these people
+        assert result.summary["counters"]["nav_result"] == "succeeded"
+    assert 'alt="map with the trajectory" src="data:image/png;base64,' in (tmp_path / "report.html").read_text()
