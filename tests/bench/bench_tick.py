@@ -40,7 +40,7 @@ class Noop(Skill):
 
 
 class Spin(Skill):
-    name = "spin"
+    name = "keep_running"
     description = "Run forever, one yield per tick."
 
     def run(self, ctx: SkillContext) -> SkillRun:
@@ -97,7 +97,7 @@ def plain_tree(leaf_cls: type[py_trees.behaviour.Behaviour], composite: str) -> 
 def bench_tree(variant: str, ticks: int, repeats: int) -> dict[str, Any]:
     leaf, plain_leaf, root = {
         "instant": ("noop", py_trees.behaviours.Success, "sequence"),
-        "running": ("spin", py_trees.behaviours.Running, "parallel"),
+        "running": ("keep_running", py_trees.behaviours.Running, "parallel"),
     }[variant]
     engine = Engine(clock=SimClock(100), registry=_registry())
     tree = engine.builder().tree(tree_spec(leaf, root))
