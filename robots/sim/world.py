@@ -6,9 +6,11 @@ What it models, and why:
 - **Kinematics** with the instantaneous centre of curvature (the book's ICC model), wheel
   speeds limited by the profile's top speed and accelerations, so commands are shaped as the
   real base would shape them.
-- **Wheel slip**: each wheel covers its commanded distance times (1 + noise), so odometry
-  drifts the way it does on a floor.
-- **Encoders** count whole ticks (quantisation) of the distance each wheel really covered.
+- **Wheel slip**: each wheel covers its commanded distance times (1 + noise). The encoders
+  count whole ticks (quantisation) of the distance each wheel *covered*, slip included, so
+  odometry is exact but for quantisation. Known gap: on a real floor the encoders count the
+  wheel's turning, not the ground covered, and odometry drifts; the simulator moves to that
+  model together with the localiser (EKF + map correction) that makes navigation survive it.
 - **Collisions**: the robot's footprint may not overlap an occupied or unknown cell; a move
   that would is cut short where it was still clear, the wheels stop and a bump is reported.
   The robot never passes through a wall.
