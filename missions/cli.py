@@ -350,6 +350,9 @@ def _load_bench(name: str) -> ModuleType:
             "tests/bench/ (install it with `pip install -e .`)",
             2,
         )
+    checkout = str(root.parent.parent)
+    if checkout not in sys.path:  # benchmarks use the tests' helpers (tests/navsim.py)
+        sys.path.insert(0, checkout)
     spec = importlib.util.spec_from_file_location(f"botstage_bench_{name}", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
@@ -377,9 +380,9 @@ def bench_sim(quick: bool = typer.Option(False, help="a shorter run: a smoke tes
 
 @bench_app.command("nav")
 def bench_nav(quick: bool = typer.Option(False, help="fewer plans: a smoke test, not figures to quote")) -> None:
-    """Global planning time on a 1000 x 1000-cell map."""
+    """Global planning time on a 1000 x 1000-cell map; final pose accuracy (the paper's Table 2)."""
     results = _load_bench("nav").main(quick=quick)
-    slow = [r["bench"] for r in results if r["median_ms"] > r["target_ms"]]
+    slow = [r["bench"] for r in results if r.get("median_ms", 0) > r.get("target_ms", float("inf"))]
     if slow and not quick:
         _stderr([f"over target: {', '.join(slow)}"])
 
