@@ -13,10 +13,12 @@ from robots.located_yaml import find_yaml
 from robots.profile import Profile
 from robots.sim.devices import (
     SimBattery,
+    SimCamera,
     SimDisplay,
     SimDrive,
     SimImu,
     SimLaser,
+    SimMicrophone,
     SimOdometry,
     SimPeopleTracker,
     SimSonar,
@@ -61,12 +63,14 @@ class SimBackend:
             "speaker": lambda d: SimSpeaker(clock),
             "display": lambda d: SimDisplay(clock),
             "people": lambda d: SimPeopleTracker(self.world, self.crowd, d, clock),
+            "camera": lambda d: SimCamera(self.world, self.crowd, d, clock),
+            "microphone": lambda d: SimMicrophone(self.world, clock),
         }
         for name, device in profile.interfaces.items():
             if name in makers:
                 self.devices[name] = makers[name](device)
             else:
-                self.not_simulated.append(name)  # camera, microphone: coming with the perception issue
+                self.not_simulated.append(name)  # an interface the simulator has no device for
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
 
     def step(self) -> None:

@@ -8,12 +8,14 @@ hidden from skills.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robots.clock import Clock
 from robots.interfaces import (
     BatteryState,
+    CameraInfo,
     ImuReading,
     LaserScan,
     OdometryReading,
@@ -25,6 +27,9 @@ from robots.interfaces import (
 from robots.profile import Device
 from robots.sim.people import Crowd
 from robots.sim.world import RAY_STEP, World
+
+if TYPE_CHECKING:
+    from robots.sim.camera import CameraView
 
 
 class SimDrive:
@@ -206,3 +211,84 @@ class SimPeopleTracker:
         steps = np.arange(RAY_STEP, max((distance - 0.3) / resolution, RAY_STEP), RAY_STEP)
         rows, cols = world.padded_cells(x + ux * steps * resolution, y + uy * steps * resolution)
         return bool(world._padded[rows, cols].any())
+
+
+class SimCamera:
+    """Frames of the world from the camera's pose on the robot (robots/sim/camera.py draws them).
+
+    A frame is rendered at most once a clock tick, when it is first asked for, and every reader
+    in that tick gets the same array: so it is read-only (copy it to draw on it)."""
+
+    def __init__(self, world: World, crowd: Crowd, device: Device, clock: Clock) -> None:
+        from robots.sim.camera import CameraView  # OpenCV loads only for robots with a camera
+
+        self.world = world
+        self.crowd = crowd
+        self.clock = clock
+        self.view: CameraView = CameraView(device)
+        self.info = CameraInfo(self.view.width, self.view.height, self.view.fov)
+        self._frame: np.ndarray | None = None
+        self._at = -1  # the tick the cached frame shows
+        self.renders = 0
+
+    def frame(self) -> np.ndarray:
+        if self._frame is None or self._at != self.clock.ticks:
+            frame = self.view.render(self.world, self.crowd.people)
+            frame.setflags(write=False)
+            self._frame, self._at = frame, self.clock.ticks
+            self.renders += 1
+        return self._frame
+
+
+class SimMicrophone:
+    """16 kHz mono int16 audio: faint room noise plus the sounds scheduled with ``play``.
+
+    Sample n is the sound at mission time n / 16000 s. A read returns every sample from the end
+    of the previous read up to (not including) the clock's time, so consecutive reads join with
+    no gap and no overlap, whatever the tick rate. Recording starts when the microphone is made:
+    the first read returns the samples since then (since t = 0 for a backend made at the
+    start). The noise is drawn sample by sample from ``world.noise("microphone")``, so the audio is
+    the same however it is read."""
+
+    RATE = 16_000  # samples a second
+    NOISE_DBFS = -50.0  # the room's hum, as RMS relative to full scale
+
+    def __init__(self, world: World, clock: Clock) -> None:
+        self.world = world
+        self.clock = clock
+        self._next = self._samples_until(clock.now())  # index of the next sample to deliver
+        self._sounds: list[tuple[int, np.ndarray]] = []  # (first sample index, samples as int32)
+        self._noise_std = 32768 * 10 ** (self.NOISE_DBFS / 20)
+
+    def _samples_until(self, t: float) -> int:
+        """How many samples lie before time ``t`` (those at n / RATE < t); the epsilon keeps an
+        exact sample time that floating point puts a hair above it from counting early."""
+        return max(0, math.ceil(t * self.RATE - 1e-6))
+
+    def play(self, samples: np.ndarray, at: float) -> None:
+        """Mix int16 16 kHz ``samples`` into what the microphone hears from mission time ``at``.
+        Any part before the samples already read is lost, as it would be for a real microphone;
+        playing at the clock's time loses nothing."""
+        samples = np.asarray(samples)
+        if samples.ndim != 1 or samples.dtype != np.int16:
+            raise ValueError(f"a sound must be one-dimensional int16 samples, got {samples.dtype} {samples.shape}")
+        if not (math.isfinite(at) and at >= 0):
+            raise ValueError(f"a sound must start at a finite mission time >= 0, got {at}")
+        if samples.size:
+            self._sounds.append((round(at * self.RATE), samples.astype(np.int32)))
+
+    def read(self) -> np.ndarray:
+        start, end = self._next, self._samples_until(self.clock.now())
+        if end <= start:
+            return np.zeros(0, np.int16)
+        self._next = end
+        mixed = self.world.noise("microphone").normal(0.0, self._noise_std, end - start)
+        playing = []
+        for first, sound in self._sounds:
+            a, b = max(first, start), min(first + sound.size, end)
+            if a < b:
+                mixed[a - start : b - start] += sound[a - first : b - first]
+            if first + sound.size > end:
+                playing.append((first, sound))
+        self._sounds = playing
+        return np.clip(np.round(mixed), -32768, 32767).astype(np.int16)
