@@ -48,8 +48,9 @@ FLOOR = np.array([92, 118, 140], np.float32)  # a wooden floor
 WALL = np.array([178, 206, 222], np.float32)  # cream
 FOG = 0.07  # shade = 1 / (1 + FOG * distance): far things are darker
 
-# Looks that follow a person's id (BGR): skin, hair and trousers by id modulo 5, 7 and 3, the
-# shirt by id // 5 modulo 7, so the combinations repeat only after 105 people.
+# Looks that follow a person's id (BGR): skin, hair and trousers by id modulo 5, 7 and 3, and the
+# shirt shifting against the hair every 7 ids, so neighbours' ids look different and the
+# combinations repeat only after 735 people.
 SKINS = [(150, 185, 225), (115, 155, 205), (85, 120, 170), (70, 100, 145), (135, 170, 215)]
 HAIRS = [(25, 25, 30), (30, 55, 95), (45, 105, 160), (120, 120, 125), (20, 35, 60), (45, 45, 50), (15, 20, 35)]
 SHIRTS = [(40, 40, 200), (180, 90, 30), (50, 160, 50), (30, 170, 220), (140, 40, 140), (200, 200, 200), (60, 60, 60)]
@@ -239,7 +240,7 @@ def draw_person(image: np.ndarray, u: float, horizon: float, scale: float, pid: 
 
     skin = SKINS[pid % len(SKINS)]
     hair = HAIRS[pid % len(HAIRS)]
-    shirt = SHIRTS[pid // len(SKINS) % len(SHIRTS)]
+    shirt = SHIRTS[(pid + pid // len(HAIRS)) % len(SHIRTS)]
     sleeve = tuple(int(c * 0.8) for c in shirt)
     trousers = TROUSERS[pid % len(TROUSERS)]
     shadow = tuple(int(c * 0.78) for c in skin)
