@@ -45,7 +45,3 @@ class RobotServices:
                 update()
 
         return after
-
-    def summary(self) -> dict[str, Any]:
-        stack = self.interfaces.get("navigation")
-        return {"plans": stack.plans} if stack is not None else {}

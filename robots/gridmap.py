@@ -61,6 +61,15 @@ class GridMap:
             dx, dy = c * dx - s * dy, s * dx + c * dy
         return math.floor(dy / self.resolution), math.floor(dx / self.resolution)
 
+    def cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``cell`` for arrays of points: (rows, cols), possibly outside the grid."""
+        ox, oy, yaw = self.origin
+        dx, dy = np.asarray(xs, dtype=float) - ox, np.asarray(ys, dtype=float) - oy
+        if yaw:
+            c, s = math.cos(-yaw), math.sin(-yaw)
+            dx, dy = c * dx - s * dy, s * dx + c * dy
+        return np.floor(dy / self.resolution).astype(np.int64), np.floor(dx / self.resolution).astype(np.int64)
+
     def point(self, row: int, col: int) -> tuple[float, float]:
         """World coordinates of a cell's centre."""
         ox, oy, yaw = self.origin

@@ -278,3 +278,20 @@ def test_spin_and_back_up() -> None:
     wall = NavSim("museum", "peoplebot", (1.0, 5.0, 0.0))  # 0.5 m from the west wall, facing away
     outcome = wall.run(BackUp(), distance=0.8)
     assert outcome.name == "failure" and "no room" in outcome.reason
+
+
+def test_malformed_goals_and_inputs_fail_with_a_reason_and_do_not_move() -> None:
+    sim = NavSim("museum", "peoplebot", "hall_centre")
+    start = sim.truth
+    for goal in ([1.0], [1.0, 2.0, 3.0, 4.0], [float("nan"), 1.0]):
+        outcome = sim.run(Navigate(), goal=goal)
+        assert outcome.name == "unreachable" and "a goal is a place name" in outcome.reason
+    outcome = sim.run(Wander(), order="zigzag")
+    assert outcome.name == "failure" and "`sequence` or `random`" in outcome.reason
+    outcome = sim.run(Approach(), target=[1.0])
+    assert outcome.name == "unreachable" and "a target is [x, y]" in outcome.reason
+    outcome = sim.run(Approach(), target=[12.0, 10.0], standoff=-1.0)
+    assert outcome.name == "unreachable" and "standoff" in outcome.reason
+    assert sim.run(Spin(), speed=0.0).name == "failure"
+    assert sim.run(BackUp(), distance=-0.3).name == "failure"
+    assert sim.truth == start

@@ -177,19 +177,10 @@ class NavStack:
         keep = (distance < reach) & (points[:, 0] > -self.robot_radius)
         if not keep.any():
             return math.inf
-        points, distance = points[keep], distance[keep]
-        pose = self.pose()
-        c, s = math.cos(pose.theta), math.sin(pose.theta)
-        xs = pose.x + c * points[:, 0] - s * points[:, 1]
-        ys = pose.y + s * points[:, 0] + c * points[:, 1]
-        on_map = self._near_mapped[self._cells(xs, ys)]
-        return float(distance[~on_map].min()) if (~on_map).any() else math.inf
-
-    def _cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ox, oy, _ = self.grid.origin
-        rows = np.clip(np.floor((ys - oy) / self.grid.resolution).astype(int), 0, self.grid.data.shape[0] - 1)
-        cols = np.clip(np.floor((xs - ox) / self.grid.resolution).astype(int), 0, self.grid.data.shape[1] - 1)
-        return rows, cols
+        rows, cols = self._cells_of(self.pose(), points[keep])
+        shape = self._near_mapped.shape
+        on_map = self._near_mapped[np.clip(rows, 0, shape[0] - 1), np.clip(cols, 0, shape[1] - 1)]
+        return float(distance[keep][~on_map].min()) if (~on_map).any() else math.inf
 
     def follower_params(self, tolerance: float, heading_tolerance: float, max_speed: float | None) -> FollowerParams:
         limits = self.limits
@@ -210,15 +201,17 @@ class NavStack:
         if not len(points):
             return 0
         points = points[np.hypot(points[:, 0], points[:, 1]) <= within]
+        rows, cols = self._cells_of(pose, points)
+        inside = (rows >= 0) & (rows < self._seen_at.shape[0]) & (cols >= 0) & (cols < self._seen_at.shape[1])
+        self._seen_at[rows[inside], cols[inside]] = self.clock.now()
+        return int(inside.sum())
+
+    def _cells_of(self, pose: Pose2D, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Grid cells of points given in the base frame of a robot at ``pose``."""
         c, s = math.cos(pose.theta), math.sin(pose.theta)
-        xs = pose.x + c * points[:, 0] - s * points[:, 1]
-        ys = pose.y + s * points[:, 0] + c * points[:, 1]
-        cells = [self.grid.cell(float(x), float(y)) for x, y in zip(xs, ys, strict=True)]
-        cells = [(r, col) for r, col in cells if self.grid.inside(r, col)]
-        if cells:
-            rows, cols = np.array(cells).T
-            self._seen_at[rows, cols] = self.clock.now()
-        return len(cells)
+        return self.grid.cells(
+            pose.x + c * points[:, 0] - s * points[:, 1], pose.y + s * points[:, 0] + c * points[:, 1]
+        )
 
     def clear(self) -> None:
         """Forget every obstacle seen (the `clear_costmap` recovery)."""
@@ -228,8 +221,8 @@ class NavStack:
         """Cells that hold an obstacle seen within the memory."""
         return self._seen_at >= self.clock.now() - self.obstacle_memory
 
-    def costs(self) -> np.ndarray:
-        seen = self.seen()
+    def costs(self, seen: np.ndarray | None = None) -> np.ndarray:
+        seen = self.seen() if seen is None else seen
         if not seen.any():
             return self.static
         costs = self.static.copy()
@@ -242,7 +235,7 @@ class NavStack:
         seen = self.seen()
         if not seen.any():
             return self.planner.plan(start, goal)
-        costs = self.costs()
+        costs = self.costs(seen)
         row, col = self.grid.cell(*start)
         if self.grid.inside(row, col) and not math.isfinite(costs[row, col]):
             # the robot stands in what it saw (a person right beside it): free its own cell's disk
@@ -260,10 +253,9 @@ class NavStack:
         row, col = self.grid.cell(x, y)
         if not self.grid.inside(row, col) or not math.isfinite(self.static[row, col]):
             return False
-        return not self.seen()[
-            max(row - self._disk.shape[0] // 2, 0) : row + self._disk.shape[0] // 2 + 1,
-            max(col - self._disk.shape[1] // 2, 0) : col + self._disk.shape[1] // 2 + 1,
-        ].any()
+        half = self._disk.shape[0] // 2
+        window = self._seen_at[max(row - half, 0) : row + half + 1, max(col - half, 0) : col + half + 1]
+        return not (window >= self.clock.now() - self.obstacle_memory).any()
 
     def resolve(self, goal: str | list[float] | tuple[float, ...]) -> tuple[float, float, float | None]:
         """A place name or [x, y] / [x, y, theta] as a goal; raises ValueError with what is known."""
