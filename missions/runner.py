@@ -180,6 +180,8 @@ def run(
         summary["blackboard_overrides"] = jsonable(blackboard)  # what a replay must set again
     if sim is not None:
         summary["sim"] = sim.summary()
+    if services is not None and services.localizer is not None:
+        summary["localization"] = services.summary(sim.world.body.pose if sim is not None else None)
     if isinstance(clock, WallClock):
         summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
     from missions.report import write_report  # matplotlib and friends load only when reporting

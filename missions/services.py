@@ -7,6 +7,7 @@ pose; the navigation stack plans on the run's map with that pose.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -14,13 +15,16 @@ from typing import Any
 from robots.clock import Clock
 from robots.interfaces import Pose2D
 from robots.sim.backend import SimBackend
+from skills.nav.ekf import wrap
+from skills.nav.localization import Localizer
 from skills.nav.stack import NavStack
 
 
 @dataclass
 class RobotServices:
     interfaces: dict[str, Any] = field(default_factory=dict)
-    updates: list[Callable[[], None]] = field(default_factory=list)
+    updates: list[Callable[[], Any]] = field(default_factory=list)
+    localizer: Localizer | None = None
 
     @classmethod
     def for_sim(cls, sim: SimBackend, clock: Clock) -> RobotServices:
@@ -28,12 +32,15 @@ class RobotServices:
         devices = sim.devices
         if "odometry" not in devices or "drive" not in devices:
             return services  # a robot that cannot tell where it is does not navigate
-        odometry = devices["odometry"]
-
-        def pose() -> Pose2D:
-            return odometry.read().pose
-
-        services.interfaces["navigation"] = NavStack.for_robot(sim.world.profile, devices, sim.world.grid, clock, pose)
+        grid, profile = sim.world.grid, sim.world.profile
+        # the run starts where the mission put the robot: the localiser is told so, as an operator
+        # (or a dock) tells a real robot; from then on only the devices and the map are used
+        localizer = Localizer.for_devices(devices, grid, profile)
+        localizer.update()
+        services.localizer = localizer
+        services.updates.append(localizer.update)
+        services.interfaces["localization"] = localizer
+        services.interfaces["navigation"] = NavStack.for_robot(profile, devices, grid, clock, localizer.pose)
         return services
 
     def after_step(self, step: Callable[[], None]) -> Callable[[], None]:
@@ -45,3 +52,19 @@ class RobotServices:
                 update()
 
         return after
+
+    def summary(self, truth: Pose2D | None = None) -> dict[str, Any]:
+        """The localiser's counters and final estimate; with the true pose (simulation), its error."""
+        if self.localizer is None:
+            return {}
+        estimate = self.localizer.estimate()
+        pose = estimate.pose
+        summary: dict[str, Any] = {
+            "source": estimate.source,
+            "final_estimate": [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)],
+            **self.localizer.summary(),
+        }
+        if truth is not None:
+            summary["final_error_cm"] = round(math.hypot(pose.x - truth.x, pose.y - truth.y) * 100, 2)
+            summary["final_error_deg"] = round(math.degrees(abs(wrap(pose.theta - truth.theta))), 3)
+        return summary

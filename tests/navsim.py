@@ -84,7 +84,7 @@ class NavSim:
             assert self.clock.now() < deadline, f"{skill.name} still running after {limit} s"
             for hook in self.before_step:
                 hook(self)
+            self.clock.next_tick()  # as the engine does: the tick is decided, then the world moves over it
             self.step()
-            self.clock.next_tick()
             outcome = execution.step()
         return outcome

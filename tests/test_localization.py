@@ -290,10 +290,12 @@ def test_map_corrected_loop_with_people_in_the_laser() -> None:
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_chefbot_ekf_heading_beats_odometry(seed: int) -> None:
+def test_chefbot_ekf_heading_beats_odometry_and_its_depth_scan_beats_both(seed: int) -> None:
     run = drive_loop(robot="chefbot", world="restaurant", seed=seed, max_linear=0.35)
-    assert "map" not in run.errors
     assert max(run.errors["ekf"].heading) < 0.7 * max(run.errors["odometry"].heading)
+    # the depth camera's 60 degree scan (depthimage_to_laserscan) against the map
+    assert max(run.errors["map"].position) < 0.5 * max(run.errors["ekf"].position)
+    assert run.errors["map"].position[-1] < 0.05
 
 
 def test_loops_are_deterministic() -> None:

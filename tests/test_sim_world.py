@@ -94,7 +94,18 @@ def test_encoders_count_whole_ticks_of_the_real_distance() -> None:
     per_metre = w.base.encoder_ticks_per_rev / (math.pi * w.base.wheel_diameter)
     for wheel in (w.body.left, w.body.right):
         assert isinstance(wheel.ticks, int)
+        assert wheel.turned == pytest.approx(wheel.distance)  # no slip: turning is ground covered
         assert wheel.ticks == math.floor(wheel.distance * per_metre)
+
+
+def test_encoders_count_turning_not_slipped_ground() -> None:
+    w = world(slip_std=0.05)
+    drive(w, 0.3, 0.0, 10.0)
+    per_metre = w.base.encoder_ticks_per_rev / (math.pi * w.base.wheel_diameter)
+    for wheel in (w.body.left, w.body.right):
+        assert wheel.ticks == math.floor(wheel.turned * per_metre)
+        assert wheel.turned != pytest.approx(wheel.distance, abs=1e-4)  # slip: the floor disagrees
+    assert abs(w.body.left.distance - w.body.left.turned) < 0.05 * w.body.left.turned  # but not by much
 
 
 def test_same_seed_same_trajectory_other_seed_other_slip() -> None:

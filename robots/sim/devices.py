@@ -26,7 +26,7 @@ from robots.interfaces import (
 )
 from robots.profile import Device
 from robots.sim.people import Crowd
-from robots.sim.world import RAY_STEP, World
+from robots.sim.world import World
 
 if TYPE_CHECKING:
     from robots.sim.camera import CameraView
@@ -92,23 +92,36 @@ class SimImu:
 
 
 class SimLaser:
+    """A scanner that turns at ``rate_hz``: reads within one revolution get the same scan, as a
+    driver's latest-scan buffer would give them (and the world casts the rays once)."""
+
     def __init__(self, world: World, device: Device, clock: Clock) -> None:
         self.world = world
         self.device = device
         self.clock = clock
+        self.period = 1.0 / device.rate_hz if device.rate_hz else 0.0
+        self._last: LaserScan | None = None
+        self._slot: int | None = None
 
     def scan(self) -> LaserScan:
+        now = self.clock.now()
+        # the world's own time decides when the scanner turned: a scan never shows a world that moved on
+        slot = math.floor(self.world.time / self.period + 1e-9) if self.period else None
+        if self._last is not None and slot is not None and slot == self._slot:
+            return self._last
         device = self.device
         beams = device.beams or 181
         fov = device.field_of_view or math.pi
-        return LaserScan(
-            self.clock.now(),
+        self._last = LaserScan(
+            now,
             -fov / 2,
             fov / max(beams - 1, 1),
             device.range_min or 0.0,
             device.range_max or 10.0,
             self.world.laser(device),
         )
+        self._slot = slot
+        return self._last
 
 
 class SimSonar:
@@ -190,27 +203,24 @@ class SimPeopleTracker:
         c, s = math.cos(pose.theta), math.sin(pose.theta)
         sx, sy, heading = pose.x + c * mx - s * my, pose.y + s * mx + c * my, pose.theta + mtheta
         half_fov = (device.field_of_view or 1.0) / 2
-        seen = []
+        in_view = []
         for person in self.crowd.people:
             dx, dy = person.x - sx, person.y - sy
             forward = dx * math.cos(heading) + dy * math.sin(heading)
             right = dx * math.sin(heading) - dy * math.cos(heading)
-            distance = math.hypot(dx, dy)
-            if not self.range_min <= forward <= self.range_max or abs(math.atan2(right, forward)) > half_fov:
-                continue
-            if self._occluded(sx, sy, dx / distance, dy / distance, distance):
+            if self.range_min <= forward <= self.range_max and abs(math.atan2(right, forward)) <= half_fov:
+                in_view.append((person, right, forward, math.atan2(dy, dx), math.hypot(dx, dy)))
+        if not in_view:
+            return []
+        # a wall on the line of sight, up to 0.3 m short of the person, hides them: one ray each
+        walls = self.world.cast(sx, sy, np.array([view[3] for view in in_view]), self.range_max)
+        seen = []
+        for (person, right, forward, _bearing, distance), wall in zip(in_view, walls, strict=True):
+            if wall < distance - 0.3:
                 continue
             noise = self.world.noise("people").normal(0.0, device.noise, 2) if device.noise else (0.0, 0.0)
             seen.append(TrackedPerson(person.id, right + float(noise[0]), forward + float(noise[1])))
         return seen
-
-    def _occluded(self, x: float, y: float, ux: float, uy: float, distance: float) -> bool:
-        """Anything solid on the line of sight, up to 0.3 m short of the person."""
-        world = self.world
-        resolution = world.grid.resolution
-        steps = np.arange(RAY_STEP, max((distance - 0.3) / resolution, RAY_STEP), RAY_STEP)
-        rows, cols = world.padded_cells(x + ux * steps * resolution, y + uy * steps * resolution)
-        return bool(world._padded[rows, cols].any())
 
 
 class SimCamera:

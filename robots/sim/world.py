@@ -6,11 +6,10 @@ What it models, and why:
 - **Kinematics** with the instantaneous centre of curvature (the book's ICC model), wheel
   speeds limited by the profile's top speed and accelerations, so commands are shaped as the
   real base would shape them.
-- **Wheel slip**: each wheel covers its commanded distance times (1 + noise). The encoders
-  count whole ticks (quantisation) of the distance each wheel *covered*, slip included, so
-  odometry is exact but for quantisation. Known gap: on a real floor the encoders count the
-  wheel's turning, not the ground covered, and odometry drifts; the simulator moves to that
-  model together with the localiser (EKF + map correction) that makes navigation survive it.
+- **Wheel slip**: each wheel covers the ground its turning says times (1 + noise). The encoders
+  count whole ticks (quantisation) of the wheel's *turning*, not the ground it covered, as on a
+  real floor: odometry drifts, and the localiser (EKF + map correction) has something to correct.
+  In a bump the wheels stop with the body: they turned as far as it moved.
 - **Collisions**: the robot's footprint may not overlap an occupied or unknown cell; a move
   that would is cut short where it was still clear, the wheels stop and a bump is reported.
   The robot never passes through a wall.
@@ -38,6 +37,8 @@ from robots.interfaces import Pose2D
 from robots.profile import Device, Profile
 
 RAY_STEP = 0.7  # in cells: under the half-diagonal (1/sqrt 2), so a thin diagonal wall is not stepped over
+RAY_CHUNK = 48  # steps a ray marches before the rays that hit drop out
+_RAY_PAD = math.ceil(RAY_CHUNK * RAY_STEP) + 2  # cells of "hit" around the map: a chunk never leaves the array
 
 
 def close_corners(hits: np.ndarray) -> np.ndarray:
@@ -68,7 +69,8 @@ def inflate(blocked: np.ndarray, radius_cells: int) -> np.ndarray:
 @dataclass
 class WheelState:
     speed: float = 0.0  # m/s, actual
-    distance: float = 0.0  # m travelled since start (signed)
+    distance: float = 0.0  # m of ground covered since start (signed, slip included)
+    turned: float = 0.0  # m the wheel turned since start (what the encoder counts)
     ticks: int = 0
 
 
@@ -112,7 +114,10 @@ class World:
         radius = math.ceil(self.base.footprint_radius / grid.resolution)
         self.blocked = inflate(grid.data != FREE, radius)  # where the robot's centre may not be
         self.hits = grid.data != FREE  # what a beam stops at
-        self._padded = np.pad(close_corners(self.hits), 1, constant_values=True)  # off the map counts as a hit
+        closed = close_corners(self.hits)
+        self._padded = np.pad(closed, 1, constant_values=True)  # off the map counts as a hit
+        self._ray_grid = np.pad(closed, _RAY_PAD, constant_values=True)
+        self._ray_flat = self._ray_grid.ravel()
         if self.collides(start.x, start.y):
             raise ValueError(f"the robot cannot start at ({start.x:g}, {start.y:g}): it would overlap an obstacle")
         self._command = (0.0, 0.0)
@@ -174,10 +179,17 @@ class World:
                 body.person_bumps += into_person
                 body.left.speed = body.right.speed = 0.0
                 self._command = (0.0, 0.0)
-        travelled = (d_left, d_right) if not body.bumped else self._travelled(body.pose, pose, d_left, d_right)
-        for wheel, distance in zip((body.left, body.right), travelled, strict=True):
-            wheel.distance += distance
-            wheel.ticks = math.floor(wheel.distance / (math.pi * base.wheel_diameter) * base.encoder_ticks_per_rev)
+        if body.bumped:
+            covered = self._travelled(body.pose, pose, d_left, d_right)
+            turned = covered  # the wheels stopped with the body
+        else:
+            covered = (d_left, d_right)
+            turned = (body.left.speed * dt, body.right.speed * dt)
+        per_metre = base.encoder_ticks_per_rev / (math.pi * base.wheel_diameter)
+        for wheel, ground, turning in zip((body.left, body.right), covered, turned, strict=True):
+            wheel.distance += ground
+            wheel.turned += turning
+            wheel.ticks = math.floor(wheel.turned * per_metre)
         body.yaw_rate = _angle(pose.theta - body.pose.theta) / dt
         body.linear = math.hypot(pose.x - body.pose.x, pose.y - body.pose.y) / dt
         body.pose = pose
@@ -251,7 +263,7 @@ class World:
     # -- sensors ------------------------------------------------------------------------------
 
     def laser(self, device: Device) -> np.ndarray:
-        """Ranges of one scan: every beam cast at once, in steps of half a cell; inf for no return."""
+        """Ranges of one scan, every beam cast at once; inf for no return."""
         beams = device.beams or 181
         fov = device.field_of_view or math.pi
         range_min, range_max = device.range_min or 0.0, device.range_max or 10.0
@@ -260,30 +272,58 @@ class World:
         c, s = math.cos(pose.theta), math.sin(pose.theta)
         ox, oy = pose.x + c * mx - s * my, pose.y + s * mx + c * my
         angles = pose.theta + mtheta - fov / 2 + fov * np.arange(beams) / max(beams - 1, 1)
-        resolution = self.grid.resolution
-        step = RAY_STEP * resolution  # under a cell's half-diagonal: thin diagonal walls are not skipped
-        distances = np.arange(step, range_max + step, step)
-        sin, cos = np.sin(angles), np.cos(angles)
-        rows, cols = self.padded_cells(ox + np.outer(cos, distances), oy + np.outer(sin, distances))
-        hit = self._padded[rows, cols]
-        first = np.argmax(hit, axis=1)
-        found = hit[np.arange(beams), first]
-        # the surface lies within the last step: two halvings refine it to a quarter of a step
-        high = distances[first]
-        low = high - step
-        for _ in range(2):
-            middle = (low + high) / 2
-            r, c = self.padded_cells(ox + cos * middle, oy + sin * middle)
-            inside = self._padded[r, c]
-            high = np.where(inside, middle, high)
-            low = np.where(inside, low, middle)
-        ranges = np.where(found, high, np.inf)
+        ranges = self.cast(ox, oy, angles, range_max)
         if self.movers is not None:
-            ranges = np.minimum(ranges, self._mover_ranges(ox, oy, cos, sin, range_max))
+            ranges = np.minimum(ranges, self._mover_ranges(ox, oy, np.cos(angles), np.sin(angles), range_max))
         if device.noise:
             ranges = ranges + self.noise("laser").normal(0.0, device.noise, beams)
         ranges[(ranges > range_max) | (ranges < range_min)] = np.inf
         return ranges
+
+    def cast(
+        self, x: float, y: float, angles: np.ndarray, range_max: float = math.inf, halvings: int = 2
+    ) -> np.ndarray:
+        """How far each ray from (x, y) runs before it meets the map (inf: not within ``range_max``).
+
+        Rays march in steps of ``RAY_STEP`` cells, a chunk of steps at a time, and drop out once
+        they hit, so open views cost only the rays still open; off the map counts as a hit. The
+        surface lies within the last step: each halving refines it twofold (two: a quarter step)."""
+        resolution = self.grid.resolution
+        gx, gy, yaw = self.grid.origin
+        dx, dy = x - gx, y - gy
+        if yaw:
+            c, s = math.cos(-yaw), math.sin(-yaw)
+            dx, dy = c * dx - s * dy, s * dx + c * dy
+        # in cells of the ray grid; a ray still open is on the map, so its chunk stays in the array
+        cx, cy = dx / resolution + _RAY_PAD, dy / resolution + _RAY_PAD
+        width = self._ray_grid.shape[1]
+        flat = self._ray_flat
+        angles = np.asarray(angles, dtype=float) - yaw
+        ux, uy = np.cos(angles), np.sin(angles)
+        rows_total, cols_total = self.grid.data.shape
+        reach = min(range_max / resolution, math.hypot(rows_total, cols_total) + 2) + RAY_STEP
+        total = math.ceil(reach / RAY_STEP)
+        far = np.full(angles.shape, np.inf)
+        active = np.arange(angles.size)
+        for start in range(0, total, RAY_CHUNK):
+            if not active.size:
+                break
+            steps = np.arange(start + 1, min(start + RAY_CHUNK, total) + 1) * RAY_STEP
+            cols = (cx + ux[active, None] * steps).astype(np.intp)
+            rows = (cy + uy[active, None] * steps).astype(np.intp)
+            hit = flat[rows * width + cols]
+            done = hit.any(axis=1)
+            far[active[done]] = steps[hit[done].argmax(axis=1)]
+            active = active[~done]
+        found = np.isfinite(far)
+        high = np.where(found, far, 0.0)
+        low = np.maximum(high - RAY_STEP, 0.0)
+        for _ in range(halvings):
+            middle = (low + high) / 2
+            inside = flat[(cy + uy * middle).astype(np.intp) * width + (cx + ux * middle).astype(np.intp)]
+            high = np.where(inside, middle, high)
+            low = np.where(inside, low, middle)
+        return np.where(found, high * resolution, np.inf)
 
     def _mover_ranges(self, ox: float, oy: float, cos: np.ndarray, sin: np.ndarray, range_max: float) -> np.ndarray:
         """Where each beam first meets a person's circle (inf where it meets none)."""

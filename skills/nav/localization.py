@@ -17,8 +17,8 @@ still learns nothing new from the same view), or when ``match_interval`` seconds
 Rejected matches are counted by reason (``summary()``). A match that fits the map well but is
 gated out as a jump inflates the covariance (``jump_inflation``): repeated, the estimate was
 overconfident (a bump, a push), and the map is let in again. The scan is taken to be as old as
-the odometry reading of the same update (true on the simulator; a real laser's latency is not
-compensated yet).
+the odometry reading of the same update; an older scan (a scanner slower than the tick) waits
+for the next one. A real laser's latency is not compensated yet.
 """
 
 from __future__ import annotations
@@ -183,7 +183,10 @@ class Localizer:
     def _match(self, now: float) -> None:
         ekf, matcher = self.ekf, self.matcher
         assert ekf is not None and matcher is not None and self.laser is not None
-        result = matcher.match(self.laser.scan(), ekf.pose, ekf.covariance)
+        scan = self.laser.scan()
+        if scan.stamp < now - 1e-6:
+            return  # the scanner has not turned since: match its next scan, taken where the robot is
+        result = matcher.match(scan, ekf.pose, ekf.covariance)
         self.last_match = result
         self._last_match_time = now
         self._last_match_pose = ekf.pose

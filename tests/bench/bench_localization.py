@@ -14,13 +14,8 @@ per match (wall clock, median and p90) and the share of matches accepted; the sa
 people (laser returns that are not on the map); matches from random poses with the prior 0.15 m
 and 4° off; and Chefbot (odometry + IMU, no laser) on a restaurant loop.
 
-**Floor encoders.** The simulator's encoders count the ground each wheel covered, slip
-included, so its odometry is exact but for quantisation (the known gap in ``robots/sim/
-world.py``). Localisation is only worth measuring against odometry that drifts, so this
-harness installs ``FloorEncoders`` after every step: the encoders count the wheels' *turning*
-(their speed times the step), not the ground covered, as on a real floor, and the simulator's
-own ``SimOdometry`` integrates those ticks unchanged. When the world adopts that model, the
-hook becomes a no-op and can go.
+The simulator's encoders count the wheels' turning, not the ground they covered (wheel slip),
+so odometry drifts as on a real floor.
 
 Run with ``python -m tests.bench.bench_localization`` (``--quick`` for one seed).
 """
@@ -55,24 +50,6 @@ STILL_S = 10.0
 MUSEUM_LOOP = ["hall_centre", "exhibit_a", "entrance", "reception", "exhibit_d", "gallery_door", "hall_centre"]
 RESTAURANT_LOOP = ["kitchen_door", "table_4", "table_6", "entrance", "table_3", "table_1", "kitchen_door"]
 SEEDS = (1, 2, 3, 4, 5)
-
-
-class FloorEncoders:
-    """Encoders that count each wheel's turning, not the ground it covered (see the module)."""
-
-    def __init__(self, world: World) -> None:
-        self.world = world
-        self.turned = [world.body.left.distance, world.body.right.distance]
-        self.covered = list(self.turned)
-
-    def after_step(self, dt: float) -> None:
-        body, base = self.world.body, self.world.base
-        per_metre = base.encoder_ticks_per_rev / (math.pi * base.wheel_diameter)
-        for i, wheel in enumerate((body.left, body.right)):
-            # a bump cuts the move short and stops the wheels: they turned as far as the body moved
-            self.turned[i] += wheel.distance - self.covered[i] if body.bumped else wheel.speed * dt
-            self.covered[i] = wheel.distance
-            wheel.ticks = math.floor(self.turned[i] * per_metre)
 
 
 def robot_profile(name: str, imu: bool = True) -> Profile:
@@ -126,7 +103,6 @@ def drive_loop(
     seed: int = 1,
     people: int = 0,
     still_s: float = STILL_S,
-    floor_encoders: bool = True,
     max_linear: float = 0.6,
 ) -> LoopRun:
     """Drive ``route`` (place names) on the true pose and track the estimators (see the module)."""
@@ -136,7 +112,6 @@ def drive_loop(
     clock = SimClock(RATE_HZ)
     start = grid.places[route[0]]
     sim = SimBackend(profile, grid, Pose2D(*start), seed, clock, people=people)
-    encoders = FloorEncoders(sim.world) if floor_encoders else None
     devices = sim.devices
     with_map = Localizer.for_devices(devices, grid, profile) if "laser" in devices else None
     without_map = Localizer.for_devices({k: v for k, v in devices.items() if k != "laser"}, None, profile)
@@ -168,8 +143,6 @@ def drive_loop(
         before = sim.world.body.pose
         sim.devices["drive"].cmd_vel(v, w)
         sim.step()
-        if encoders is not None:
-            encoders.after_step(clock.period)
         clock.next_tick()
         truth = sim.world.body.pose
         distance += math.hypot(truth.x - before.x, truth.y - before.y)
