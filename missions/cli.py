@@ -380,7 +380,7 @@ def bench_sim(quick: bool = typer.Option(False, help="a shorter run: a smoke tes
 
 @bench_app.command("nav")
 def bench_nav(quick: bool = typer.Option(False, help="fewer plans: a smoke test, not figures to quote")) -> None:
-    """Global planning time on a 1000 x 1000-cell map; final pose accuracy (the paper's Table 2)."""
+    """Planning time on a 1000 x 1000-cell map; final pose accuracy (the paper's Table 2); pose drift on a loop."""
     results = _load_bench("nav").main(quick=quick)
     slow = [r["bench"] for r in results if r.get("median_ms", 0) > r.get("target_ms", float("inf"))]
     if slow and not quick:

@@ -25,7 +25,7 @@ def test_shipped_profiles_load_with_the_books_figures() -> None:
         2.0,
     )
     assert (chefbot.battery.nominal_voltage, chefbot.battery.capacity_ah) == (12.0, 10.0)
-    assert set(chefbot.interfaces) == {"drive", "odometry", "imu", "sonar", "battery"}
+    assert set(chefbot.interfaces) == {"drive", "odometry", "imu", "sonar", "battery", "laser"}  # laser: the depth scan
     assert base.ticks_per_metre == pytest.approx(4480 / (3.141592653589793 * 0.09))
     peoplebot, problems, _ = load_profile(Path("robots/profiles/peoplebot.yaml"))
     assert problems == [] and peoplebot is not None
@@ -49,31 +49,31 @@ def broken(tmp_path: Path, old: str, new: str) -> list[str]:
         (
             "  max_linear: 0.35",
             "  max_linear: 0.5",
-            "bot.yaml:12:3: error: 0.5 m/s is faster than the wheels can turn: 80 RPM on 0.09 m wheels give 0.377 m/s",
+            "bot.yaml:14:3: error: 0.5 m/s is faster than the wheels can turn: 80 RPM on 0.09 m wheels give 0.377 m/s",
         ),
         (
             "  max_angular: 2.0 ",
             "  max_angular: 3.0 ",
-            "bot.yaml:13:3: error: 3.0 rad/s is faster than the wheels allow (2.51 rad/s turning on the spot)",
+            "bot.yaml:15:3: error: 3.0 rad/s is faster than the wheels allow (2.51 rad/s turning on the spot)",
         ),
         (
             "  mass: 3.0",
             "  mass: heavy",
-            "bot.yaml:18:3: error: base.mass: Input should be a valid number, unable to parse string as a number",
+            "bot.yaml:20:3: error: base.mass: Input should be a valid number, unable to parse string as a number",
         ),
-        ("  payload: 2.0", "  payload: 2.0\n  wheels: 4", "bot.yaml:20:3: error: unknown key 'wheels'"),
+        ("  payload: 2.0", "  payload: 2.0\n  wheels: 4", "bot.yaml:22:3: error: unknown key 'wheels'"),
         (
             "  battery: {hardware: launchpad}",
             "  jetpack: {hardware: launchpad}",
-            "bot.yaml:33:3: error: unknown interface 'jetpack' (known: drive, odometry, imu, laser, sonar, battery, "
+            "bot.yaml:35:3: error: unknown interface 'jetpack' (known: drive, odometry, imu, laser, sonar, battery, "
             "people, camera, microphone, speaker, display)",
         ),
         (
             "range_min: 0.02, range_max: 4.0",
             "range_min: 5.0, range_max: 4.0",
-            "bot.yaml:31:72: error: must be below range_max",
+            "bot.yaml:33:72: error: must be below range_max",
         ),
-        ("  empty_voltage: 10.5", "  empty_voltage: 13.0", "bot.yaml:24:3: error: must be below full_voltage"),
+        ("  empty_voltage: 10.5", "  empty_voltage: 13.0", "bot.yaml:26:3: error: must be below full_voltage"),
     ],
 )
 def test_broken_profiles_give_located_errors(tmp_path: Path, old: str, new: str, expected: str) -> None:
@@ -92,7 +92,7 @@ def test_missions_name_robots_by_profile_or_path(tmp_path: Path) -> None:
     (tmp_path / "mine.yaml").write_text(CHEFBOT.read_text().replace("skills: {}", "skills:\n  wait: {speed: 2}"))
     mission.write_text("robot: mine.yaml\n" + body)
     assert [str(p).replace(str(tmp_path) + "/", "") for p in check(mission).problems] == [
-        "mine.yaml:35:3: error: parameter of 'wait': Extra inputs are not permitted"
+        "mine.yaml:41:3: error: parameter of 'wait': Extra inputs are not permitted"
     ]
     mission.write_text("world: museum\n" + body)
     assert "a world needs a robot to put in it" in str(check(mission).problems[0])

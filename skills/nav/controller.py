@@ -25,6 +25,7 @@ class FollowerParams:
     max_angular: float = 1.5
     lookahead: float = 0.6
     goal_tolerance: float = 0.08  # m
+    arrive_ahead: float = 0.0025  # m: in the tolerance, the goal may lie this far ahead when stopping
     heading_tolerance: float = 0.06  # rad
     slow_near_goal: float = 0.8  # m: ramp down over this distance
     min_linear: float = 0.05
@@ -60,6 +61,9 @@ class PathFollower:
         self.goal_heading = goal_heading
         self.params = params
         self._progress = 0  # index of the path point closest to the robot so far (never goes back)
+        # once there, stay there: turn to the goal's heading in place, without chasing the
+        # millimetres a turn on slipping wheels moves the robot (nav2's stateful goal checker)
+        self._in_position = False
 
     def command(
         self, pose: Pose2D, obstacles: LaserScan | np.ndarray | None = None, unmapped: float = math.inf
@@ -71,7 +75,19 @@ class PathFollower:
         p = self.params
         gx, gy = self.path[-1]
         to_goal = math.hypot(gx - pose.x, gy - pose.y)
-        if to_goal <= p.goal_tolerance:
+        if to_goal > 3 * p.goal_tolerance:
+            self._in_position = False  # pushed away: go back
+        c, s = math.cos(pose.theta), math.sin(pose.theta)
+        goal_ahead = c * (gx - pose.x) + s * (gy - pose.y)
+        # within the tolerance, still creep on while the goal lies ahead: the tolerance is what is
+        # accepted, the goal is what is aimed at (arrivals spread over the tolerance disk otherwise)
+        there = to_goal <= p.goal_tolerance and (goal_ahead <= p.arrive_ahead or to_goal <= p.arrive_ahead)
+        if there or self._in_position:
+            if not self._in_position:
+                # stop rolling before turning: on a base that limits each wheel's acceleration, a
+                # turn started at speed keeps the robot rolling forward while the wheels cross over
+                self._in_position = True
+                return Command(0.0, 0.0, "aligning")
             if self.goal_heading is None:
                 return Command(0.0, 0.0, "arrived")
             error = _angle(self.goal_heading - pose.theta)

@@ -29,6 +29,10 @@ from skills.nav.planner import Unreachable
 from skills.nav.stack import NavStack
 
 OUTCOMES = ("succeeded", "unreachable", "blocked", "timeout", "cancelled")
+# at rest: moved under a millimetre and turned under 0.05 deg in a tick; waited for at most a second
+SETTLED_MOVE = 0.001
+SETTLED_TURN = math.radians(0.05)
+SETTLE_LIMIT = 1.0
 
 
 class NavParams(BaseModel):
@@ -91,6 +95,7 @@ def drive_to(
     stuck_since: float | None = None  # the first stop since the robot last made headway
     stuck_travelled = 0.0
     planned_at = start_time
+    settling_since: float | None = None
     try:
         while True:
             if cancel is not None and cancel():
@@ -100,13 +105,24 @@ def drive_to(
                 left = math.hypot(gx - pose.x, gy - pose.y)
                 return result("timeout", f"not there after {timeout:.0f} s ({left:.2f} m to go)")
             pose = stack.pose()
-            travelled += math.hypot(pose.x - last.x, pose.y - last.y)
+            moved = math.hypot(pose.x - last.x, pose.y - last.y)
+            turned = abs(math.remainder(pose.theta - last.theta, math.tau))
+            travelled += moved
             last = pose
             obstacles = stack.obstacles()
             command = follower.command(pose, obstacles, stack.unmapped_distance(obstacles))
             if command.state == "arrived":
                 drive.stop()
+                # there is where the robot came to rest: while it still rolls or turns, look again
+                # next tick (the follower corrects if it rolled out of the tolerance)
+                still = moved < SETTLED_MOVE and turned < SETTLED_TURN
+                if settling_since is None:
+                    settling_since = now
+                if not still and now - settling_since < SETTLE_LIMIT:
+                    yield
+                    continue
                 return result("succeeded", f"at ({pose.x:.2f}, {pose.y:.2f}) after {travelled:.1f} m")
+            settling_since = None
             if command.state != "blocked":
                 blocked_since = None
                 if stuck_since is not None and travelled - stuck_travelled >= 0.5:

@@ -16,8 +16,8 @@ Figures (``python -m tests.bench.bench_localization``, 2-core VM): 0.47 ms media
 p90 per match on the museum loop (181 beams, 0.05 m map; target 5 ms), 1.5 ms median and 2.2
 ms p90 with the window at its widest; from 300 random museum poses with the prior 0.15 m and 4°
 off, 93% accepted (the rest refused as ambiguous: a robot facing one wall) with 0.5 cm mean and
-1.8 cm worst error; over a 48 m loop the map-corrected pose stays within 1.2 cm and 0.4°, where
-odometry alone drifts 0.6-2.5 m and 6-14°.
+1.8 cm worst error; over a 56 m loop the map-corrected pose stays within 1.2 cm and 0.4°, where
+odometry alone drifts 1-3 m and 10-17° at worst (README, Benchmarks).
 
 How a match works:
 

@@ -1,6 +1,6 @@
 """Pose drift over a loop: odometry alone vs EKF (odometry + IMU) vs map-corrected (+ laser).
 
-The PeopleBot drives a 48 m loop through the museum (hall, entrance, reception, gallery door) on the
+The PeopleBot drives a 56 m loop through the museum (hall, entrance, reception, gallery door) on the
 simulator, steered with its *true* pose (so every estimator sees the same drive), while three
 estimators run side by side from the same devices: the raw odometry reading, a ``Localizer``
 without the laser (the EKF with the gyro) and a ``Localizer`` with the laser and the map. Each
@@ -17,7 +17,7 @@ and 4° off; and Chefbot (odometry + IMU, no laser) on a restaurant loop.
 The simulator's encoders count the wheels' turning, not the ground they covered (wheel slip),
 so odometry drifts as on a real floor.
 
-Run with ``python -m tests.bench.bench_localization`` (``--quick`` for one seed).
+Run with ``botstage bench nav`` or ``python -m tests.bench.bench_localization`` (``--quick`` for one seed).
 """
 
 from __future__ import annotations
@@ -47,7 +47,16 @@ from skills.nav.scan_match import ScanMatcher
 
 RATE_HZ = 10.0
 STILL_S = 10.0
-MUSEUM_LOOP = ["hall_centre", "exhibit_a", "entrance", "reception", "exhibit_d", "gallery_door", "hall_centre"]
+MUSEUM_LOOP = [
+    "hall_centre",
+    "exhibit_a",
+    "entrance",
+    "reception",
+    "exhibit_d",
+    "gallery_door",
+    "exhibit_b",
+    "hall_centre",
+]
 RESTAURANT_LOOP = ["kitchen_door", "table_4", "table_6", "entrance", "table_3", "table_1", "kitchen_door"]
 SEEDS = (1, 2, 3, 4, 5)
 

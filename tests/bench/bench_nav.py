@@ -1,5 +1,7 @@
 """Navigation benchmarks. Run with `botstage bench nav`.
 
+- **Pose drift** over a 56 m museum loop, odometry vs EKF vs map-corrected: see
+  ``bench_localization.py`` (run from here too).
 - **Planning**: global planning time on a 1000 x 1000-cell map (target: median <= 100 ms per
   plan). A seeded map of 300 rectangular obstacles (50 x 50 m at 5 cm), inflated for a 0.3 m
   robot, and 50 random start-goal pairs on free floor. pyastar2d does not report its
@@ -12,7 +14,8 @@
   1-2 m with rotation (random direction and final heading) by the simulated PeopleBot in the
   museum hall, navigate's tolerances 2 cm / 0.02 rad. Errors are the robot's true final pose
   in the simulator against the goal, in the goal's frame (x forward, y left), as the paper
-  measured; and separately the pose estimate the robot drove by against the true pose.
+  measured; and separately the pose estimate the robot drove by against the true pose. The
+  headline run uses seed 11; eight more seeds show how much a 50-goal mean moves by chance.
 """
 
 from __future__ import annotations
@@ -172,14 +175,41 @@ def bench_final_pose(goals: int, seed: int = 11) -> dict[str, Any]:
         "estimate_vs_true_std": [round(float(v), 3) for v in est.std(axis=0, ddof=1)],
         "pose_source": "Localizer: odometry + laser scan matching on the map (the PeopleBot has no IMU)",
         "wall_s": round(time.perf_counter() - start, 2),
+        "_errors": err.tolist(),
+    }
+
+
+def bench_final_pose_seeds(seeds: tuple[int, ...], goals: int) -> dict[str, Any]:
+    """The protocol again on other seeds: a mean over 50 goals moves by about std / sqrt(50)
+    from run to run, so one run's |mean| below the paper's 0.04 cm is partly luck; this shows how
+    often it holds, and the mean over all goals."""
+    runs = [bench_final_pose(goals, seed) for seed in seeds]
+    means = np.array([run["mean_error"] for run in runs])
+    pooled = np.array([run["_errors"] for run in runs]).reshape(-1, 3)
+    for run in runs:
+        run.pop("_errors")
+    return {
+        "bench": "final_pose_table2_seeds",
+        "seeds": list(seeds),
+        "goals_each": goals,
+        "mean_x_per_seed": [round(float(v), 3) for v in means[:, 0]],
+        "runs_better_on_every_column": sum(all(run["better_than_paper"].values()) for run in runs),
+        "pooled_mean_error": [round(float(v), 3) for v in pooled.mean(axis=0)],
+        "pooled_std": [round(float(v), 3) for v in pooled.std(axis=0, ddof=1)],
+        "pooled_standard_error": [round(float(v), 3) for v in pooled.std(axis=0, ddof=1) / math.sqrt(len(pooled))],
     }
 
 
 def main(quick: bool = False) -> list[dict[str, Any]]:
-    results = [bench_planning(10 if quick else 50), bench_final_pose(10 if quick else 50)]
+    headline = bench_final_pose(10 if quick else 50)
+    headline.pop("_errors")
+    results = [bench_planning(10 if quick else 50), headline]
+    results.append(bench_final_pose_seeds((12, 13) if quick else (12, 13, 14, 15, 16, 17, 18, 19), 10 if quick else 50))
     for result in results:
         print(json.dumps(result), flush=True)
-    return results
+    from tests.bench import bench_localization  # pose drift over the 56 m loop: prints its own
+
+    return results + bench_localization.main(quick=quick)
 
 
 if __name__ == "__main__":
