@@ -32,6 +32,7 @@ BUILTIN_MODULES = (
     "skills.approach",
     "skills.recoveries",
     "skills.converse",
+    "skills.speak",
 )
 
 
