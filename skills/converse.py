@@ -53,10 +53,27 @@ class ConverseParams(BaseModel):
 
 @dataclass
 class _RunMaya:
-    """One run's Maya for one set of parameters: the future of her loading, then her."""
+    """One run's Maya for one set of parameters: the future of her loading, then her.
+
+    Replies are answered in the order they were asked (each waits for the one before), so two
+    nodes talking to her in the same tick leave the same conversation history in every run.
+    """
 
     future: Future[tuple[Chatbot, LoadedBrain]]
     reported: bool = False
+    last: Future[str] | None = None
+
+    def ask(self, ctx: SkillContext, prompt: str, visitor: str, rng: random.Random) -> Future[str]:
+        chatbot, _ = self.future.result()
+        before = self.last
+
+        def reply() -> str:
+            if before is not None:
+                before.exception()  # wait for it; its failure is its own asker's to report
+            return chatbot.reply(prompt, visitor, rng)
+
+        self.last = ctx.submit(reply)
+        return self.last
 
 
 # a run's Mayas, found through the run's worker pool: the one object every skill of a run shares
@@ -138,7 +155,7 @@ class Converse(Skill):
                 return Outcome("timeout", f"the chatbot was not loaded within {timeout:g} s")
             yield
         try:
-            chatbot, brain = maya.future.result()
+            _, brain = maya.future.result()
         except Exception as error:
             return Outcome.failure(f"the chatbot could not load: {error}")
         if not maya.reported:
@@ -148,5 +165,5 @@ class Converse(Skill):
             for note in brain.notes:  # about this machine's cache: python logging, not the trace
                 _log.warning(note)
         rng = random.Random(ctx.rng.getrandbits(64))  # drawn on the engine's thread: same every run
-        reply = yield ctx.submit(chatbot.reply, prompt, visitor, rng)
+        reply = yield maya.ask(ctx, prompt, visitor, rng)
         return Outcome("replied", "", _outputs(reply, None, heard))

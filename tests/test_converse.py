@@ -538,6 +538,61 @@ def test_visitors_are_remembered_per_run(harness: Harness) -> None:
     assert reply == "You have not told me your name yet. What is it?"
 
 
+class LazyFuture(Future[Any]):
+    """Work that runs when the pool says so, or as soon as someone waits for its result."""
+
+    def __init__(self, work: Any) -> None:
+        super().__init__()
+        self._work = work
+
+    def run(self) -> None:
+        if not self.done():
+            try:
+                self.set_result(self._work())
+            except Exception as error:
+                self.set_exception(error)
+
+    def result(self, timeout: float | None = None) -> Any:
+        self.run()
+        return super().result(timeout)
+
+    def exception(self, timeout: float | None = None) -> BaseException | None:
+        self.run()
+        return super().exception(timeout)
+
+
+class Backwards:
+    """A worker pool that does the latest work first: the worst order threads could take."""
+
+    def __init__(self) -> None:
+        self.futures: list[LazyFuture] = []
+
+    def submit(self, fn: Any, *args: Any, **kwargs: Any) -> Future[Any]:
+        self.futures.append(LazyFuture(lambda: fn(*args, **kwargs)))
+        return self.futures[-1]
+
+    def run_backwards(self) -> None:
+        for future in reversed(self.futures):
+            future.run()
+
+
+def test_replies_asked_in_one_tick_are_answered_in_the_order_asked() -> None:
+    pool = Backwards()
+    harness = Harness(workers=pool)
+    tell = harness.execution(Converse({"alice": False}), "tell")
+    ask = harness.execution(Converse({"alice": False}), "ask")
+    assert tell.start({"text": "My name is Ada", "visitor": "v"}) is None
+    assert ask.start({"text": "What is my name?", "visitor": "v"}) is None
+    pool.run_backwards()  # Maya loads
+    harness.tick()
+    assert tell.step() is None and ask.step() is None  # both replies asked in this tick
+    pool.run_backwards()  # the question's work runs first; it waits for the introduction
+    harness.tick()
+    told, asked = tell.step(), ask.step()
+    assert told is not None and told.outputs["reply"] == "Nice to meet you, Ada! I am Maya."
+    assert asked is not None and asked.outputs["reply"] == "Your name is Ada."
+
+
 class Pending:
     """A worker pool whose work never finishes by itself: the skill must keep ticking."""
 
