@@ -440,6 +440,15 @@ def bench_nav(quick: bool = typer.Option(False, help="fewer plans: a smoke test,
         _stderr([f"over target: {', '.join(slow)}"])
 
 
+@bench_app.command("chat")
+def bench_chat(quick: bool = typer.Option(False, help="fewer repeats: a smoke test, not figures to quote")) -> None:
+    """Maya's brain: learning the AIML against loading the cached brain; reply latency; memory."""
+    results = _load_bench("chat").main(quick=quick)
+    slow = [r["bench"] for r in results if r.get("ratio", float("inf")) < r.get("target_ratio", 0)]
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
+
+
 def main() -> None:  # pragma: no cover - console script entry
     app()
 
