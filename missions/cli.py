@@ -341,6 +341,59 @@ def skills() -> None:
     _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in registry.problems])
 
 
+@app.command()
+def chat(
+    visitor: str = typer.Option("visitor", help="who you are: Maya remembers each visitor apart"),
+    alice: bool = typer.Option(True, help="learn the A.L.I.C.E. set python-aiml ships (small talk)"),
+    aiml: list[Path] = typer.Option([], help="more AIML files or folders, learnt last (repeatable)"),
+    cache_dir: Path | None = typer.Option(None, help="brain cache folder (default: the user cache)"),
+    seed: int | None = typer.Option(None, help="seed Maya's random choices (default: a new one each time)"),
+) -> None:
+    """Chat with Maya in the terminal: the converse skill's kernel and command routing.
+
+    One line is one utterance; a robot command (PHOTO, YES, WHATSUP, CANCEL, CIAO, "take a
+    picture"...) is shown as the event the mission would get. `/visitor NAME` lets another
+    visitor speak (Maya remembers each apart). `quit` or end of input ends.
+    """
+    import random
+
+    from rich.markup import escape
+
+    from skills.chat.cache import load_brain
+    from skills.chat.chatbot import Chatbot
+    from skills.chat.persona import aiml_files
+
+    brain = load_brain(aiml_files(alice, aiml), cache_dir)
+    _stderr([str(problem) for problem in brain.problems] + [f"note: {note}" for note in brain.notes])
+    if brain.trie.template_count == 0:
+        raise _fail("error: no AIML category was learnt", 2)
+    how = "loaded from the cache" if brain.origin == "cache" else "learnt and cached" if brain.path else "learnt"
+    _stderr([f"Maya: {brain.trie.template_count:,} categories {how} in {brain.seconds:.2f} s"])
+    maya = Chatbot(brain.trie, seed=seed if seed is not None else random.randrange(2**32))
+    interactive = sys.stdin.isatty()
+    while True:
+        if interactive:
+            sys.stdout.write(f"{visitor}> ")
+            sys.stdout.flush()
+        line = sys.stdin.readline()
+        if not line:  # end of input
+            break
+        text = line.strip()
+        if not text:
+            continue
+        if text.lower() in ("quit", "exit", "/quit"):
+            break
+        if text.startswith("/visitor"):
+            visitor = text.removeprefix("/visitor").strip() or visitor
+            console.print(f"({visitor} speaks now)", highlight=False, markup=False)
+            continue
+        turn = maya.turn(text, visitor)
+        if turn.command is not None:
+            console.print(f"[bold]-> {turn.command}[/] (command: the mission's `command` outcome)", highlight=False)
+        else:
+            console.print(f"[bold]Maya:[/] {escape(turn.reply)}", highlight=False, soft_wrap=True)
+
+
 def _load_bench(name: str) -> ModuleType:
     root = Path(__file__).resolve().parent.parent / "tests" / "bench"
     path = root / f"bench_{name}.py"
@@ -387,5 +440,18 @@ def bench_nav(quick: bool = typer.Option(False, help="fewer plans: a smoke test,
         _stderr([f"over target: {', '.join(slow)}"])
 
 
+@bench_app.command("chat")
+def bench_chat(quick: bool = typer.Option(False, help="fewer repeats: a smoke test, not figures to quote")) -> None:
+    """Maya's brain: learning the AIML against loading the cached brain; reply latency; memory."""
+    results = _load_bench("chat").main(quick=quick)
+    slow = [r["bench"] for r in results if r.get("ratio", float("inf")) < r.get("target_ratio", 0)]
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
+
+
 def main() -> None:  # pragma: no cover - console script entry
+    app()
+
+
+if __name__ == "__main__":  # python -m missions.cli, from a checkout without the console script
     app()

@@ -1,8 +1,9 @@
 """report.html: one self-contained page about a run.
 
 Summary table, a timeline of states and skills (drawn as inline SVG, plus the table behind it),
-and the pictures of the mission's machine or tree. Everything is inline (no scripts, no
-external files), so the page opens anywhere, offline, and can be attached to a bug report.
+the transcript when anyone spoke, and the pictures of the mission's machine or tree. Everything
+is inline (no scripts, no external files), so the page opens anywhere, offline, and can be
+attached to a bug report.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 from behaviors.engine import Engine
 from behaviors.render import GraphvizMissing, describe, graphviz, to_dot, to_text
 from missions.check import Checked, build_root, root_spec_path
+from missions.transcript import read_transcript
 from robots.clock import SimClock
 
 MAX_ROWS = 2000
@@ -199,6 +201,23 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     return f'<h2 id="map">Map and trajectory</h2>\n{image}'
 
 
+def transcript_section(folder: Path) -> str:
+    """Who said what, when (transcript.jsonl); empty for a run where nobody spoke."""
+    lines = read_transcript(folder)
+    if not lines:
+        return ""
+    e = html.escape
+    rows = "".join(
+        f'<tr class="{e(u.who)}"><td>{u.t:g}</td><td>{e(u.who)}</td><td>{e(u.text)}</td><td>{e(u.node)}</td></tr>'
+        for u in lines[:MAX_ROWS]
+    )
+    more = f"<p>{len(lines) - MAX_ROWS} more lines are in transcript.jsonl.</p>" if len(lines) > MAX_ROWS else ""
+    return (
+        '<h2 id="transcript">Transcript</h2>\n'
+        f'<table class="transcript"><tr><th>t s</th><th>who</th><th>said</th><th>where</th></tr>{rows}</table>{more}'
+    )
+
+
 def pictures(checked: Checked) -> str:
     mission = checked.mission
     assert mission is not None
@@ -226,6 +245,7 @@ td, th { border: 1px solid #ddd; padding: 3px 8px; text-align: left; vertical-al
 th { background: #f5f5f5; }
 .picture svg { max-width: 100%; height: auto; }
 .outcome { font-weight: bold; }
+.transcript tr.robot td { background: #eef6ff; }
 pre { background: #f8f8f8; padding: 1em; overflow-x: auto; }
 """
 
@@ -268,6 +288,7 @@ def write_report(folder: Path, checked: Checked, summary: dict[str, Any]) -> Pat
 <h3>States and skills</h3>
 <table class="timeline-table"><tr><th>kind</th><th>where</th><th>name</th><th>start s</th><th>end s</th>
 <th>outcome</th><th>reason</th></tr>{timeline_rows}</table>{more}
+{transcript_section(folder)}
 {trajectory_map(folder, checked)}
 <h2 id="pictures">Mission</h2>
 {pictures(checked)}

@@ -1,7 +1,8 @@
 """Run a checked mission on the engine and leave its run folder.
 
-The folder holds ``trace.jsonl`` (streamed while the mission runs), ``summary.json`` and
-``report.html`` (both derived from the trace afterwards), and the run's artefacts.
+The folder holds ``trace.jsonl`` (streamed while the mission runs), ``summary.json``,
+``report.html`` and ``transcript.jsonl`` when anyone spoke (all derived from the trace
+afterwards), and the run's artefacts.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path, start_pose
 from missions.loader import Problem
 from missions.services import RobotServices
+from missions.transcript import write_transcript
 from robots.clock import Clock, SimClock, WallClock
 from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
@@ -161,6 +163,7 @@ def run(
             if sim is not None:
                 sim.close()
                 sim.write_trajectory(folder / "trajectory.csv")
+    write_transcript(folder)
     summary = summarise(
         folder,
         mission=mission.name,

@@ -197,6 +197,21 @@ class Speaker(Protocol):
 
 
 @runtime_checkable
+class AudioSpeaker(Speaker, Protocol):
+    """A speaker that also plays sound made on the robot's side, such as synthesised speech.
+
+    A plain ``Speaker`` only takes text (its own voice, or a display of it); the ``speak`` skill
+    hands one of these the audio instead, when it could make some.
+    """
+
+    def play(self, samples: np.ndarray, rate_hz: int, text: str = "") -> None:
+        """Play mono int16 ``samples`` at ``rate_hz``; ``text`` is what they say (for records)."""
+
+    def stop(self) -> None:
+        """Stop what is playing now (speech that was cancelled)."""
+
+
+@runtime_checkable
 class Display(Protocol):
     def show(self, layout: str, **content: str) -> None:
         """Show a named screen layout (e.g. the PeopleBot tablet's Layout_1) with its content."""

@@ -31,6 +31,8 @@ BUILTIN_MODULES = (
     "skills.wander",
     "skills.approach",
     "skills.recoveries",
+    "skills.converse",
+    "skills.speak",
 )
 
 

@@ -158,17 +158,35 @@ class SimBattery:
 
 
 class SimSpeaker:
-    """Records what was said; speech lasts about 0.4 s a word on the mission clock."""
+    """Records what was said and played; busy for as long as it would sound on the mission clock.
+
+    Text alone lasts about 0.4 s a word; played audio lasts its samples' duration. ``said`` holds
+    the text of both, ``played`` the audio (time, text, int16 samples, rate)."""
 
     def __init__(self, clock: Clock) -> None:
         self.clock = clock
         self.said: list[tuple[float, str]] = []
+        self.played: list[tuple[float, str, np.ndarray, int]] = []
         self._until = 0.0
 
     def say(self, text: str) -> None:
         now = self.clock.now()
         self.said.append((now, text))
         self._until = max(self._until, now) + 0.4 * max(1, len(text.split()))
+
+    def play(self, samples: np.ndarray, rate_hz: int, text: str = "") -> None:
+        samples = np.asarray(samples)
+        if samples.ndim != 1 or samples.dtype != np.int16:
+            raise ValueError(f"audio must be one-dimensional int16 samples, got {samples.dtype} {samples.shape}")
+        if not rate_hz > 0:
+            raise ValueError(f"a sample rate must be positive, got {rate_hz}")
+        now = self.clock.now()
+        self.said.append((now, text))
+        self.played.append((now, text, samples, rate_hz))
+        self._until = max(self._until, now) + samples.size / rate_hz
+
+    def stop(self) -> None:
+        self._until = min(self._until, self.clock.now())
 
     def busy(self) -> bool:
         return self.clock.now() < self._until

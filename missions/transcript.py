@@ -1,0 +1,64 @@
+"""transcript.jsonl: who said what, and when, in a run, read from its trace.
+
+Skills say what was spoken through their outputs, so it is in the trace like every other
+result and survives mocking: an output named ``said`` is the robot speaking (``speak``), one
+named ``heard`` is a visitor (what ``converse`` answered or routed). Each becomes one line at
+the mission time its skill run started (when the robot began to talk, when the visitor's words
+were taken up), in the order of the trace.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+ROLES = {"said": "robot", "heard": "visitor"}  # output port -> who spoke
+FILE = "transcript.jsonl"
+
+
+@dataclass(frozen=True)
+class Utterance:
+    t: float  # mission seconds
+    who: str  # robot or visitor
+    text: str
+    node: str  # the tree node or state that ran the skill
+    skill: str
+
+
+def transcript(trace_path: Path) -> list[Utterance]:
+    started: dict[str, float] = {}
+    lines: list[Utterance] = []
+    with trace_path.open(encoding="utf-8") as trace:
+        for raw in trace:
+            event = json.loads(raw)
+            kind = event["ev"]
+            if kind == "skill_start":
+                started[event["node"]] = event["t"]
+            elif kind == "skill_outcome":
+                outputs = event["outputs"] or {}
+                t = started.pop(event["node"], event["t"])
+                for port, who in ROLES.items():
+                    text = outputs.get(port)
+                    if isinstance(text, str) and text.strip():
+                        lines.append(Utterance(t, who, text, event["node"], event["skill"]))
+    lines.sort(key=lambda u: u.t)  # stable: same-time lines keep the trace's order
+    return lines
+
+
+def write_transcript(folder: Path) -> Path | None:
+    """Write the run's transcript.jsonl; None (and no file) when nobody said anything."""
+    lines = transcript(folder / "trace.jsonl")
+    if not lines:
+        return None
+    path = folder / FILE
+    path.write_text("".join(json.dumps(asdict(u), ensure_ascii=False) + "\n" for u in lines), encoding="utf-8")
+    return path
+
+
+def read_transcript(folder: Path) -> list[Utterance]:
+    path = folder / FILE
+    if not path.exists():
+        return []
+    with path.open(encoding="utf-8") as f:
+        return [Utterance(**json.loads(line)) for line in f if line.strip()]
