@@ -18,6 +18,7 @@ from robots.sim.backend import SimBackend
 from skills.nav.ekf import wrap
 from skills.nav.localization import Localizer
 from skills.nav.stack import NavStack
+from skills.perception.people_tracking import PeopleTracking
 
 
 @dataclass
@@ -41,6 +42,9 @@ class RobotServices:
         services.updates.append(localizer.update)
         services.interfaces["localization"] = localizer
         services.interfaces["navigation"] = NavStack.for_robot(profile, devices, grid, clock, localizer.pose)
+        if "people" in devices:
+            mount = profile.interfaces["people"].pose
+            services.interfaces["people_tracking"] = PeopleTracking(devices["people"], localizer.pose, mount, clock)
         return services
 
     def after_step(self, step: Callable[[], None]) -> Callable[[], None]:

@@ -30,6 +30,7 @@ BUILTIN_MODULES = (
     "skills.back_to_point",
     "skills.wander",
     "skills.approach",
+    "skills.detect_crowd",
     "skills.recoveries",
     "skills.converse",
     "skills.speak",

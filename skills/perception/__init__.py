@@ -1,0 +1,1 @@
+"""Perception algorithms the skills use: people tracking, crowd grouping, people from a camera."""
