@@ -449,6 +449,16 @@ def bench_chat(quick: bool = typer.Option(False, help="fewer repeats: a smoke te
         _stderr([f"under target: {', '.join(slow)}"])
 
 
+@bench_app.command("crowd")
+def bench_crowd(quick: bool = typer.Option(False, help="fewer trials: a smoke test, not figures to quote")) -> None:
+    """Crowd centre-of-mass error against the simulator's truth (the paper's figure); cost per frame."""
+    results = _load_bench("crowd").main(quick=quick)
+    over = [r["bench"] for r in results if r.get("median_ms", 0) > r.get("target_ms", float("inf"))]
+    over += [r["bench"] for r in results if r.get("better_than_paper") is False]
+    if over and not quick:
+        _stderr([f"target missed: {', '.join(over)}"])
+
+
 def main() -> None:  # pragma: no cover - console script entry
     app()
 

@@ -160,6 +160,8 @@ def run(
             counters = {key: jsonable(engine.blackboard.get(key, None)) for key in mission.counters}
         finally:
             engine.close("mission ended")  # cancels whatever still runs: motors stop
+            if services is not None:
+                services.close()
             if sim is not None:
                 sim.close()
                 sim.write_trajectory(folder / "trajectory.csv")

@@ -18,6 +18,7 @@ from robots.sim.backend import SimBackend
 from skills.nav.ekf import wrap
 from skills.nav.localization import Localizer
 from skills.nav.stack import NavStack
+from skills.perception.camera_people import CameraPeopleTracker
 from skills.perception.people_tracking import PeopleTracking
 
 
@@ -26,6 +27,7 @@ class RobotServices:
     interfaces: dict[str, Any] = field(default_factory=dict)
     updates: list[Callable[[], Any]] = field(default_factory=list)
     localizer: Localizer | None = None
+    closers: list[Callable[[], Any]] = field(default_factory=list)
 
     @classmethod
     def for_sim(cls, sim: SimBackend, clock: Clock) -> RobotServices:
@@ -45,6 +47,11 @@ class RobotServices:
         if "people" in devices:
             mount = profile.interfaces["people"].pose
             services.interfaces["people_tracking"] = PeopleTracking(devices["people"], localizer.pose, mount, clock)
+        elif "camera" in devices:  # a robot with only a camera finds people by their faces
+            tracker = CameraPeopleTracker(devices["camera"], simulated=clock.simulated)
+            services.closers.append(tracker.close)
+            mount = profile.interfaces["camera"].pose
+            services.interfaces["people_tracking"] = PeopleTracking(tracker, localizer.pose, mount, clock)
         return services
 
     def after_step(self, step: Callable[[], None]) -> Callable[[], None]:
@@ -56,6 +63,10 @@ class RobotServices:
                 update()
 
         return after
+
+    def close(self) -> None:
+        for close in self.closers:
+            close()
 
     def summary(self, truth: Pose2D | None = None) -> dict[str, Any]:
         """The localiser's counters and final estimate; with the true pose (simulation), its error."""

@@ -10,7 +10,7 @@ from robots.clock import SimClock
 from robots.gridmap import GridMap
 from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
-from robots.profile import load_profile
+from robots.profile import Profile, load_profile
 from robots.sim.backend import SimBackend, map_path
 from skills.base import Outcome, Skill, SkillContext, SkillLogger
 from skills.execution import SkillExecution
@@ -41,10 +41,18 @@ def grid(name: str) -> GridMap:
 
 class NavSim:
     def __init__(
-        self, world: str | GridMap, robot: str, start: str | tuple[float, float, float], seed: int = 0, people: int = 0
+        self,
+        world: str | GridMap,
+        robot: str | Profile,
+        start: str | tuple[float, float, float],
+        seed: int = 0,
+        people: int = 0,
     ) -> None:
-        profile, problems, _ = load_profile(f"robots/profiles/{robot}.yaml")
-        assert profile is not None, problems
+        if isinstance(robot, Profile):
+            profile = robot
+        else:
+            profile, problems, _ = load_profile(f"robots/profiles/{robot}.yaml")
+            assert profile is not None, problems
         self.grid = grid(world) if isinstance(world, str) else world
         pose = self.grid.places[start] if isinstance(start, str) else start
         self.clock = SimClock(10)

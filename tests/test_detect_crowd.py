@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from robots.interfaces import Pose2D
+from robots.profile import Profile, load_profile
 from skills.detect_crowd import DetectCrowd
+from skills.perception.camera_people import CASCADE, faces_to_people
 from skills.perception.crowd import CrowdTracker, group
 from skills.perception.people_tracking import map_to_sensor, sensor_to_map
 from skills.perception.tracking import PeopleTracks
@@ -153,3 +155,34 @@ def test_bad_inputs_and_robots_without_a_tracker_fail_with_a_reason() -> None:
     chefbot = NavSim("restaurant", "chefbot", "kitchen")
     outcome = chefbot.run(DetectCrowd())
     assert outcome.name == "failure" and "no people tracker" in outcome.reason
+
+
+# -- a robot with only a camera -----------------------------------------------------------------
+
+
+def camera_only_peoplebot() -> Profile:
+    profile, problems, _ = load_profile("robots/profiles/peoplebot.yaml")
+    assert profile is not None, problems
+    interfaces = {k: v for k, v in profile.interfaces.items() if k != "people"}
+    return profile.model_copy(update={"interfaces": interfaces})
+
+
+def test_faces_to_people_uses_the_pinhole_model() -> None:
+    # a 0.22 m box 50 px high at f = 500 px is 2.2 m ahead; 100 px right of the centre is 0.44 m right
+    (person,) = faces_to_people([(395, 100, 50, 50)], 640, 500.0, face_height=0.22)
+    assert (person.x, person.z) == pytest.approx((0.44, 2.2))
+    assert faces_to_people([(0, 0, 0, 0)], 640, 500.0) == []
+
+
+@pytest.mark.skipif(not CASCADE.exists(), reason="OpenCV without its Haar cascades (opencv-python-headless<5 has them)")
+def test_a_camera_only_robot_finds_a_crowd_by_faces() -> None:
+    sim = NavSim("museum", camera_only_peoplebot(), START, seed=4, people=3)
+    spots = [(13.4, 9.3), (13.7, 10.1), (13.5, 10.9)]  # side by side: no face hides another
+    place(sim, spots)
+    outcome = sim.run(DetectCrowd(), duration=5.0)
+    assert outcome.name == "crowd_found", outcome.reason
+    assert outcome.outputs["size"] == 3
+    cx, cy = np.mean(spots, axis=0)
+    # distance from a face box's height: within a few per cent at 2-3 m
+    assert math.hypot(outcome.outputs["centre"][0] - cx, outcome.outputs["centre"][1] - cy) < 0.25
+    sim.services.close()

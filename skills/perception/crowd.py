@@ -1,6 +1,6 @@
 """Crowds as the PeopleBot paper defines them: more than one person, each within 1.5 m of another.
 
-Grouping is **single linkage** (the connected components of the "within 1.5 m" graph): the
+Grouping is **single linkage** (scipy's hierarchical clustering cut at 1.5 m): the
 paper's words, "each within 1.5 m of another", ask that every member have *some* neighbour that
 close, not that all pairs be. A queue of five people 1 m apart is one crowd, as a guide would
 see it. The centre of mass is R = (r1 + ... + rn) / n over the members' filtered positions.
@@ -17,8 +17,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial.distance import pdist, squareform
+from scipy.cluster.hierarchy import fcluster, linkage
 
 CROWD_DISTANCE = 1.5  # m, the paper's
 
@@ -38,9 +37,8 @@ def group(ids: list[int], positions: np.ndarray, distance: float = CROWD_DISTANC
     """Single-linkage groups of more than one person, as lists of indices into ``ids``."""
     if len(ids) < 2:
         return []
-    near = squareform(pdist(positions)) <= distance
-    count, labels = connected_components(near, directed=False)
-    groups = [list(np.flatnonzero(labels == label)) for label in range(count)]
+    clusters = fcluster(linkage(positions, method="single"), t=distance, criterion="distance")
+    groups = [list(np.flatnonzero(clusters == label)) for label in np.unique(clusters)]
     return [g for g in groups if len(g) > 1]
 
 

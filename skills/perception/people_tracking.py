@@ -93,7 +93,8 @@ class PeopleTracking:
                 dropped += 1
                 continue
             mx, my = sensor_to_map(pose, self.mount, x, z)
-            detections.append((mx, my, getattr(person, "id", None)))
+            sensor_id = getattr(person, "id", None)
+            detections.append((mx, my, sensor_id if isinstance(sensor_id, int) and sensor_id >= 0 else None))
         self.dropped += dropped
         tracks = self.tracks.update(now, detections)
         people = [(t.id, *t.position) for t in tracks]

@@ -55,24 +55,22 @@ class PeopleTracks:
         tracks; returns the confirmed tracks."""
         dt = 0.0 if self.time is None else max(0.0, time - self.time)
         self.time = time
-        for track in self.tracks:
-            self._predict(track.kf, dt)
+        if dt > 0:
+            transition, noise = self._motion(dt)
+            for track in self.tracks:
+                track.kf.predict(F=transition, Q=noise)
         found = [d for d in detections if math.isfinite(d[0]) and math.isfinite(d[1])]
         matched_tracks: set[int] = set()
         matched_found: set[int] = set()
         if self.tracks and found:
-            cost = np.empty((len(self.tracks), len(found)))
-            for i, track in enumerate(self.tracks):
-                tx, ty = track.position
-                for j, (x, y, sensor_id) in enumerate(found):
-                    distance = math.hypot(x - tx, y - ty)
-                    if sensor_id is not None and sensor_id == track.sensor_id:
-                        distance -= self.params.same_id_bonus
-                    cost[i, j] = distance
-            rows, cols = linear_sum_assignment(cost)
+            predicted = np.array([t.position for t in self.tracks])
+            seen = np.array([(x, y) for x, y, _ in found])
+            distance = np.hypot(predicted[:, None, 0] - seen[None, :, 0], predicted[:, None, 1] - seen[None, :, 1])
+            same_id = np.array([[sid is not None and sid == t.sensor_id for _, _, sid in found] for t in self.tracks])
+            rows, cols = linear_sum_assignment(distance - self.params.same_id_bonus * same_id)
             for i, j in zip(rows, cols, strict=True):
                 track, (x, y, sensor_id) = self.tracks[i], found[j]
-                if math.hypot(x - track.position[0], y - track.position[1]) > self.params.gate:
+                if distance[i, j] > self.params.gate:
                     continue
                 track.kf.update(np.array([[x], [y]]))
                 track.hits += 1
@@ -105,12 +103,11 @@ class PeopleTracks:
         kf.P = np.diag([self.params.measurement_noise**2] * 2 + [1.0, 1.0])
         return kf
 
-    def _predict(self, kf: KalmanFilter, dt: float) -> None:
-        if dt <= 0:
-            return
-        kf.F = np.array([[1.0, 0.0, dt, 0.0], [0.0, 1.0, 0.0, dt], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    def _motion(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Constant velocity over ``dt``, with white-noise acceleration (per axis:
+        [[dt^4/4, dt^3/2], [dt^3/2, dt^2]] times its variance)."""
+        transition = np.array([[1.0, 0.0, dt, 0.0], [0.0, 1.0, 0.0, dt], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
         q = self.params.acceleration_noise**2
-        # white-noise acceleration, per axis: [[dt^4/4, dt^3/2], [dt^3/2, dt^2]] * q
         a, b, c = dt**4 / 4 * q, dt**3 / 2 * q, dt**2 * q
-        kf.Q = np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
-        kf.predict()
+        noise = np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
+        return transition, noise
