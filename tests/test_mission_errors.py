@@ -49,7 +49,7 @@ def test_unknown_skill(tmp_path: Path) -> None:
               - wait: {duration: 1}
               - detect_crowed: {}
     """,
-    ) == ["m.yaml:5:9: error: unknown node or skill 'detect_crowed'"]
+    ) == ["m.yaml:5:9: error: unknown node or skill 'detect_crowed' (did you mean 'detect_crowd'?)"]
     assert problems(tmp_path, VALID_MACHINE.replace("skill: wait", "skill: wiat")) == [
         "m.yaml:5:7: error: unknown skill 'wiat' (did you mean 'wait'?)"
     ]
