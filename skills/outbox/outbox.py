@@ -30,10 +30,12 @@ class Outbox:
         background: bool = False,
         seed: int = 0,
         token: str | None = None,
+        on_change: Callable[[Item], None] | None = None,
     ) -> None:
         """``now`` is the clock the backoff counts in; ``background`` pumps on a thread (real time
         only); otherwise the owner calls ``pump()`` and ``settle()`` (once per tick on the sim clock).
-        ``token`` defaults to the environment variable the settings name."""
+        ``token`` defaults to the environment variable the settings name; ``on_change`` hears every
+        answer applied (on the pumping thread)."""
         from skills.outbox.client import GalleryClient  # httpx loads only when an outbox opens
 
         self.settings = settings or OutboxSettings()
@@ -55,6 +57,7 @@ class Outbox:
             concurrency=self.settings.concurrency,
             backoff=Backoff(self.settings.backoff_initial, self.settings.backoff_max),
             seed=seed,
+            on_change=on_change,
         )
         self.resumed = sum(1 for _ in self.store.pending())  # left pending by an earlier process
         if background:
