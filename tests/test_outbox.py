@@ -156,7 +156,7 @@ def test_a_worker_killed_mid_way_loses_nothing_and_sends_nothing_twice(tmp_path,
     hashes = [first.record(p).hash for p in photos]
     first.pump()  # two uploads in flight...
     assert first.worker.in_flight == 2
-    first.close(grace=0)  # ...and the process dies: their answers are never applied
+    first.abandon()  # ...and the process dies: their answers are never applied
     second = open_outbox(gallery.upload_url)
     assert second.resumed == 5  # nothing was marked done
     for _ in range(5):

@@ -115,8 +115,18 @@ class Outbox:
         return self.counts()[UPLOADED]
 
     def close(self, grace: float = 0.0) -> None:
-        """Stop uploading; attempts still in flight after ``grace`` s leave their photos pending."""
+        """Stop, after a last look for what is due; attempts still in flight after ``grace`` s
+        leave their photos pending (the next process to open the outbox sends them)."""
+        self.worker.stop()
+        if grace > 0:
+            self.worker.pump()
         self.worker.close(grace)
+        self.client.close()
+        self.store.close()
+
+    def abandon(self) -> None:
+        """Stop as a crash would: no answer is applied any more, whatever is in flight."""
+        self.worker.close(0.0)
         self.client.close()
         self.store.close()
 
