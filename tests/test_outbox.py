@@ -8,6 +8,8 @@ import logging
 import os
 import random
 import sqlite3
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -164,6 +166,40 @@ def test_a_worker_killed_mid_way_loses_nothing_and_sends_nothing_twice(tmp_path,
     assert second.counts() == {PENDING: 0, UPLOADED: 5, REJECTED: 0, DAMAGED: 0}
     listed = [p["hash"] for p in photos_in(gallery)]
     assert sorted(listed) == sorted(hashes)  # each exactly once
+
+
+CRASHING_ROBOT = """
+import sys
+from skills.outbox.outbox import Outbox
+outbox = Outbox(sys.argv[1], sys.argv[2], background=True)
+for photo in sys.argv[3:]:
+    outbox.record(photo)
+print("recorded", flush=True)
+sys.stdin.readline()  # killed while waiting here, uploads in flight or done
+"""
+
+
+def test_a_process_killed_with_sigkill_leaves_an_outbox_the_next_one_finishes(tmp_path, gallery, open_outbox) -> None:
+    photos = [str(make_photo(tmp_path / f"p{i}", seed=i, size=(480, 640))) for i in range(6)]
+    folder = tmp_path / "outbox"
+    robot = subprocess.Popen(
+        [sys.executable, "-c", CRASHING_ROBOT, str(folder), gallery.upload_url, *photos],
+        cwd=Path(__file__).resolve().parent.parent,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert robot.stdout is not None and robot.stdout.readline() == "recorded\n"
+    finally:
+        robot.kill()  # SIGKILL: no finally, no close, the WAL as it was
+        robot.wait(30)
+    after = open_outbox(gallery.upload_url, folder)
+    assert after.counts()[PENDING] + after.counts()[UPLOADED] == 6
+    for _ in range(6):
+        after.step()
+    assert after.counts()[UPLOADED] == 6
+    assert sorted(p["name"] for p in photos_in(gallery)) == [f"p{i}.jpg" for i in range(6)]
 
 
 def test_a_crash_after_the_gallery_stored_it_but_before_marking_done_makes_no_duplicate(

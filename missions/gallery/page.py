@@ -26,6 +26,11 @@ def _value(value: object) -> str:
     return value if isinstance(value, str) else json.dumps(value, ensure_ascii=False)
 
 
+def _when(iso: str) -> str:
+    """``2026-11-22T02:51:38.831+00:00`` as ``2026-11-22 02:51:38 UTC``."""
+    return f"{iso[:19].replace('T', ' ')} UTC" if iso.endswith("+00:00") else iso
+
+
 def render_page(photos: list[Photo], title: str = "botstage gallery") -> str:
     figures = []
     for photo in photos:
@@ -35,7 +40,7 @@ def render_page(photos: list[Photo], title: str = "botstage gallery") -> str:
         figures.append(
             f'<figure><a href="/photos/{photo.hash}"><img src="/thumbs/{photo.hash}" alt="{escape(photo.name)}" '
             f'loading="lazy"></a><figcaption><strong>{escape(photo.name)}</strong> '
-            f"({photo.size / 2**20:.2f} MB, {escape(photo.received_at)})"
+            f"({photo.size / 2**20:.2f} MB, {escape(_when(photo.received_at))})"
             f"{f'<dl>{rows}</dl>' if rows else ''}</figcaption></figure>"
         )
     count = f"{len(photos)} photo{'' if len(photos) == 1 else 's'}"
