@@ -394,6 +394,40 @@ def chat(
             console.print(f"[bold]Maya:[/] {escape(turn.reply)}", highlight=False, soft_wrap=True)
 
 
+@app.command()
+def gallery(
+    host: str = typer.Option("127.0.0.1", help="address to listen on (loopback by default)"),
+    port: int = typer.Option(8765, help="TCP port"),
+    folder: Path = typer.Option(Path("gallery"), "--dir", help="where photos and the index are kept"),
+    max_mb: float = typer.Option(20.0, help="largest photo accepted, MB (bigger: 413)"),
+) -> None:
+    """Serve the photo gallery the upload skill sends to: POST /photos, the page at /, JSON at /api/photos.
+
+    With $BOTSTAGE_GALLERY_TOKEN set, uploads need `Authorization: Bearer <token>` (else 401).
+    """
+    import os
+
+    from missions.gallery.server import is_loopback, serve
+    from skills.outbox.settings import TOKEN_ENV
+
+    token = os.environ.get(TOKEN_ENV) or None
+    if not is_loopback(host) and token is None:
+        _stderr([f"warning: serving on {host} without a token: anyone who can reach it can upload (set {TOKEN_ENV})"])
+    if max_mb <= 0:
+        raise _fail("error: --max-mb must be positive", 2)
+    shown = f"[{host}]" if ":" in host else host
+    _stderr(
+        [
+            f"gallery of {folder.resolve()} at http://{shown}:{port}/ (uploads: POST /photos"
+            + (", token required)" if token else ")")
+        ]
+    )
+    try:
+        serve(folder, host, port, token=token, max_bytes=int(max_mb * 2**20))
+    except OSError as exc:
+        raise _fail(f"error: cannot serve on {host}:{port}: {exc.strerror or exc}", 2) from None
+
+
 def _load_bench(name: str) -> ModuleType:
     root = Path(__file__).resolve().parent.parent / "tests" / "bench"
     path = root / f"bench_{name}.py"
@@ -457,6 +491,15 @@ def bench_crowd(quick: bool = typer.Option(False, help="fewer trials: a smoke te
     over += [r["bench"] for r in results if r.get("better_than_paper") is False]
     if over and not quick:
         _stderr([f"target missed: {', '.join(over)}"])
+
+
+@bench_app.command("upload")
+def bench_upload(quick: bool = typer.Option(False, help="fewer photos: a smoke test, not figures to quote")) -> None:
+    """Photos through the durable outbox to the local gallery against a plain HTTP POST; the paper's 3.26 MB photo."""
+    results = _load_bench("upload").main(quick=quick)
+    slow = [r["bench"] for r in results if r.get("ratio", float("inf")) < r.get("target_ratio", 0)]
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
 
 
 def main() -> None:  # pragma: no cover - console script entry

@@ -26,6 +26,7 @@ from behaviors.machine import MachineBehaviour, failure_reason
 from behaviors.skill_behaviour import SkillBehaviour
 from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path, start_pose
+from missions.gallery.service import fill_counters, run_uploads
 from missions.loader import Problem
 from missions.services import RobotServices
 from missions.transcript import write_transcript
@@ -125,12 +126,15 @@ def run(
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
         sim = _simulator(checked, seed, clock) if backend == "sim" else None
         services = RobotServices.for_sim(sim, clock) if sim is not None else None
+        # the upload skill's outboxes (and a gallery when none is configured): nothing opens unless used
+        uploads = run_uploads(folder, clock, seed)
+        devices = {**sim.devices, **services.interfaces} if sim is not None and services is not None else {}
         engine = Engine(
             clock=clock,
             seed=seed,
             trace=Trace(clock, sink, keep=False),
             registry=registry,
-            interfaces={**sim.devices, **services.interfaces} if sim is not None and services is not None else None,
+            interfaces={**devices, "uploads": uploads},
         )
         try:
             root = build(engine, checked, blackboard)
@@ -145,7 +149,10 @@ def run(
                         snapshot,
                         progress_interval_s,
                         before_tick,
-                        services.after_step(sim.step) if sim is not None and services is not None else None,
+                        _after_tick(
+                            services.after_step(sim.step) if sim is not None and services is not None else None,
+                            uploads.after_tick,
+                        ),
                     )
             except KeyboardInterrupt:
                 interrupted = True
@@ -162,9 +169,11 @@ def run(
             engine.close("mission ended")  # cancels whatever still runs: motors stop
             if services is not None:
                 services.close()
+            uploads.close()  # uploads in flight get a few seconds; pending photos stay in the outbox
             if sim is not None:
                 sim.close()
                 sim.write_trajectory(folder / "trajectory.csv")
+    upload_summary = uploads.summary() if uploads.used else None
     write_transcript(folder)
     summary = summarise(
         folder,
@@ -187,6 +196,9 @@ def run(
         summary["sim"] = sim.summary()
     if services is not None and services.localizer is not None:
         summary["localization"] = services.summary(sim.world.body.pose if sim is not None else None)
+    if upload_summary is not None:
+        summary["upload"] = upload_summary
+        fill_counters(summary["counters"], upload_summary)
     if isinstance(clock, WallClock):
         summary["overruns"] = {"count": clock.overruns.count, "worst_s": round(clock.overruns.worst_s, 4)}
     from missions.report import write_report  # matplotlib and friends load only when reporting
@@ -243,6 +255,17 @@ def run_folder(name: str, out: Path | None) -> Path:
         folder = base.with_name(f"{base.name}-{n}")
     folder.mkdir(parents=True)
     return folder
+
+
+def _after_tick(*hooks: Callable[[], None] | None) -> Callable[[], None] | None:
+    """The hooks that run after each tick, in order (the world moves first, then uploads settle)."""
+    present = [hook for hook in hooks if hook is not None]
+
+    def after() -> None:
+        for hook in present:
+            hook()
+
+    return after if present else None
 
 
 def _loop(

@@ -34,6 +34,7 @@ BUILTIN_MODULES = (
     "skills.recoveries",
     "skills.converse",
     "skills.speak",
+    "skills.upload",
 )
 
 
