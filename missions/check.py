@@ -230,6 +230,20 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
     except MapError as exc:
         out.at(("world",), f"the map cannot be loaded: {exc}")
         return
+    for index, gathering in enumerate(mission.gatherings):
+        where = ("gatherings", index, "at")
+        if isinstance(gathering.at, str):
+            if gathering.at not in grid.places:
+                out.at(where, f"the map has no place {gathering.at!r}", did_you_mean(gathering.at, grid.places))
+        elif len(gathering.at) != 2:
+            out.at(where, "a gathering's place is a name or [x, y]")
+        elif not grid.is_free(gathering.at[0], gathering.at[1]):
+            out.at(where, f"({gathering.at[0]:g}, {gathering.at[1]:g}) is not free floor on the map")
+    if sum(g.size for g in mission.gatherings) > mission.people:
+        out.at(
+            ("gatherings",),
+            f"the gatherings need {sum(g.size for g in mission.gatherings)} people; `people:` is {mission.people}",
+        )
     start = mission.start
     if start is None:
         if not grid.places:

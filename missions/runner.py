@@ -225,7 +225,11 @@ def _simulator(checked: Checked, seed: int, clock: Clock) -> SimBackend | None:
     assert profile is not None
     x, y, theta = start_pose(mission, grid.places)
     try:
-        return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock, people=mission.people)
+        gatherings = [
+            (g.time, tuple(grid.places[g.at][:2]) if isinstance(g.at, str) else (g.at[0], g.at[1]), g.size, g.stay)
+            for g in mission.gatherings
+        ]
+        return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock, people=mission.people, gatherings=gatherings)
     except ValueError as exc:
         raise RunError(str(exc)) from None
 

@@ -20,6 +20,16 @@ NODE_REF = {"$ref": "#/$defs/node"}
 MACHINE_REF = {"$ref": "#/$defs/machine"}
 
 
+class Gathering(BaseModel):
+    """A group the simulator's people form on cue: the nearest free people walk to ``at``."""
+
+    model_config = ConfigDict(extra="forbid")
+    at: str | list[float] = Field(description="a named place of the map, or [x, y]")
+    size: int = Field(ge=2, le=6, description="people in the group (the paper's 2-6)")
+    time: float = Field(default=0.0, ge=0, description="mission seconds when they set off")
+    stay: float = Field(default=120.0, gt=0, description="seconds they stay once all are there")
+
+
 class KeySpec(BaseModel):
     """A declared blackboard key: its type (checked on every write) and an optional default."""
 
@@ -56,6 +66,9 @@ class Mission(BaseModel):
         default=None, description="where the robot starts: a named place of the map, or [x, y] or [x, y, yaw]"
     )
     people: int = Field(default=0, ge=0, le=500, description="simulated people walking on the map (simulation only)")
+    gatherings: list[Gathering] = Field(
+        default_factory=list, description="groups the simulated people form on cue (scenario tests, demos)"
+    )
     seed: int = 0
     rate_hz: float = Field(default=10.0, gt=0, le=10_000, description="ticks per second")
     until: float | None = Field(default=None, gt=0, description="stop after this many seconds of mission time")

@@ -24,6 +24,7 @@ BUILTIN_MODULES = (
     "skills.wait",
     "skills.log",
     "skills.set",
+    "skills.count",
     "skills.check",
     "skills.move",
     "skills.navigate",

@@ -263,3 +263,24 @@ def test_file_level_problems(tmp_path: Path, text: str, expected: str) -> None:
 def test_every_shipped_mission_is_valid() -> None:
     for path in sorted(Path("missions").glob("*.yaml")):
         assert check(path).problems == [], path
+
+
+def test_gatherings_are_checked_against_the_map_and_the_people(tmp_path: Path) -> None:
+    assert problems(
+        tmp_path,
+        """\
+        robot: peoplebot
+        world: museum
+        start: entrance
+        people: 3
+        gatherings:
+          - {at: lobby, size: 2}
+          - {at: [13.5, 10.0], size: 3}
+        trees:
+          main:
+            wait: {duration: 1}
+    """,
+    ) == [
+        "m.yaml:5:1: error: the gatherings need 5 people; `people:` is 3",
+        "m.yaml:6:6: error: the map has no place 'lobby'",
+    ]

@@ -98,3 +98,23 @@ def test_tracker_does_not_see_through_obstacles(tracker) -> None:
     world.body.pose = Pose2D(13.5, 10.0, 0.0)  # the exhibit_c plinth (x 15.4-16.6) lies ahead
     place(crowd, (17.0, 10.0), (15.0, 10.5))
     assert [p.id for p in sensor.people()] == [2]
+
+
+def test_a_scripted_gathering_brings_the_nearest_free_people_and_they_stay() -> None:
+    crowd = Crowd.populate(load("robots/maps/museum.yaml"), np.random.default_rng(2), 8)
+    crowd.next_group_at = math.inf
+    crowd.scripted = [(1.0, (13.5, 10.0), 4, 30.0)]
+    for _ in range(10 * 120):
+        crowd.step(0.1)
+        if crowd.groups and crowd.groups[0].arrived:
+            break
+    (group,) = crowd.groups
+    assert len(group.members) == 4 and group.arrived
+    members = [p for p in crowd.people if p.id in group.members]
+    assert all(math.hypot(p.x - 13.5, p.y - 10.0) < 0.7 for p in members)
+    for _ in range(10 * 29):
+        crowd.step(0.1)
+    assert crowd.groups == [group]  # still there after 29 s
+    for _ in range(10 * 2):
+        crowd.step(0.1)
+    assert crowd.groups == []  # they stayed 30 s once all were there, then left

@@ -41,11 +41,19 @@ def map_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
 
 class SimBackend:
     def __init__(
-        self, profile: Profile, grid: GridMap, start: Pose2D, seed: int, clock: Clock, people: int = 0
+        self,
+        profile: Profile,
+        grid: GridMap,
+        start: Pose2D,
+        seed: int,
+        clock: Clock,
+        people: int = 0,
+        gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
     ) -> None:
         self.clock = clock
         self.world = World(grid, profile, start, seed)
         self.crowd = Crowd.populate(grid, self.world.rng, people, avoid=(start.x, start.y))
+        self.crowd.scripted = sorted(gatherings or [])  # (time, centre, size, stay)
         # people are laser returns and obstacles, and keep clear of the robot themselves
         self.world.movers = self.crowd.positions
         self.world.mover_radius = PERSON_RADIUS

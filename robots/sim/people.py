@@ -41,6 +41,7 @@ class Group:
     spots: dict[int, tuple[float, float]]
     leave_at: float = math.inf  # set once everyone has arrived
     arrived: bool = False
+    stay: float | None = None  # s once all are there; None: a random 30-120 s
 
 
 @dataclass
@@ -53,6 +54,7 @@ class Crowd:
     time: float = 0.0
     robot: Callable[[], tuple[float, float]] | None = None  # where the robot is, to keep clear of it
     robot_radius: float = 0.0
+    scripted: list[tuple[float, tuple[float, float], int, float]] = field(default_factory=list)  # time, at, size, stay
     _next_id: int = 1
 
     def __post_init__(self) -> None:
@@ -113,10 +115,14 @@ class Crowd:
         if self.time >= self.next_group_at:
             self._form_group()
             self.next_group_at = self.time + float(self.rng.uniform(20.0, 60.0))
+        for cue in [c for c in self.scripted if self.time >= c[0]]:
+            self.scripted.remove(cue)
+            self.gather(*cue[1:])
         for group in self.groups:
             if not group.arrived and all(self._at(self._person(m), group.spots[m]) for m in group.members):
                 group.arrived = True
-                group.leave_at = self.time + float(self.rng.uniform(30.0, 120.0))
+                stay = group.stay if group.stay is not None else float(self.rng.uniform(30.0, 120.0))
+                group.leave_at = self.time + stay
         for group in [g for g in self.groups if self.time >= g.leave_at]:
             self.groups.remove(group)
             for member in group.members:
@@ -152,6 +158,25 @@ class Crowd:
             member.pause_until = 0.0
             group.spots[member.id] = spot
         self.groups.append(group)
+
+    def gather(self, centre: tuple[float, float], size: int, stay: float = 120.0) -> bool:
+        """The ``size`` nearest free people walk to ``centre`` and stay ``stay`` s once all are
+        there (a scripted gathering); False when there are too few free people or no room."""
+        free = sorted(
+            (p for p in self.people if p.group is None), key=lambda p: math.hypot(p.x - centre[0], p.y - centre[1])
+        )
+        spots = self._spots_around(centre, size) if len(free) >= size else None
+        if spots is None:
+            return False
+        group = Group(self._new_id(), centre, [m.id for m in free[:size]], {}, leave_at=math.inf)
+        group.stay = stay
+        for member, spot in zip(free[:size], spots, strict=True):
+            member.group = group.id
+            member.goal = spot
+            member.pause_until = 0.0
+            group.spots[member.id] = spot
+        self.groups.append(group)
+        return True
 
     def _spots_around(self, centre: tuple[float, float], size: int) -> list[tuple[float, float]] | None:
         start = float(self.rng.uniform(0, 2 * math.pi))
