@@ -1,9 +1,10 @@
 """Chefbot on its Launchpad: the book's controller chain behind the robot interfaces.
 
-``cmd_vel`` → twist_to_motors (``wheel_targets``, within the profile's limits, then ramped at
-its accelerations) → a PID speed loop per wheel (``WheelController``) → ``s <left> <right>``.
-The loop runs on every encoder line the board sends (and at once on every command, so a stop
-goes out without waiting for the board). The encoder steps also feed diff_tf odometry
+``cmd_vel`` → twist_to_motors (``wheel_targets``, within the profile's limits) → a PID speed
+loop per wheel (``WheelController``) → ``s <left> <right>``. The loop runs on every encoder
+line the board sends, and at once on every command, so a new speed (or a stop) goes out without
+waiting for the board. Without fresh encoder lines (over ``STALE_S``) the integral holds: the
+loop does not wind the motors up on news it does not have. The encoder steps also feed diff_tf odometry
 (``DiffOdometry``); the IMU quaternion gives the yaw the localiser's EKF fuses; the ``u`` and
 ``b`` lines give the sonar and the battery.
 
@@ -12,8 +13,9 @@ Safety, enforced here whatever the caller does:
 - **Watchdog**: with no velocity command for ``watchdog_s`` (profile ``control.watchdog_s``,
   0.5 s) the targets go to zero and ``s 0 0`` is sent; the next command moves the robot again.
 - **Limits**: speeds and turn rates beyond the profile's are clamped, wheel speeds are kept
-  under the wheels' top speed, accelerations under the profile's, outputs under the PID's
-  ``output_limit`` (and the link clamps to ±255 again).
+  under the wheels' top speed, outputs under the PID's ``output_limit`` (and the link clamps to
+  ±255 again). Accelerations are left to the callers (navigation shapes its commands) and to
+  the motors.
 - **Board resets** (``micros()`` going backwards, or encoder counters jumping further than
   the wheels could turn) are counted and logged at a limited rate; odometry takes the new
   counters as its reference instead of a jump, the IMU's yaw is re-aligned so the heading
@@ -53,7 +55,7 @@ from robots.drivers.launchpad_protocol import (
     micros_delta,
     wrap_delta,
 )
-from robots.drivers.wheel_control import WheelController, WheelSpeed, ramp, wheel_targets
+from robots.drivers.wheel_control import WheelController, WheelSpeed, wheel_targets
 from robots.interfaces import BatteryState, ImuReading, OdometryReading, Pose2D, SonarReading
 from robots.profile import Profile
 
@@ -61,6 +63,7 @@ log = logging.getLogger(__name__)
 
 LAUNCHPAD = "launchpad"  # the driver name profiles give (interfaces: {drive: {hardware: launchpad}})
 RESEND_S = 0.2  # an unchanged motor command is repeated this often (a lost command is not for ever)
+STALE_S = 0.2  # encoder news older than this does not feed the PID's integral
 WATCHDOG_POLL_S = 0.05
 
 
@@ -101,14 +104,14 @@ class ChefbotBase:
         )
         self.odometry = DiffOdometry(self.base.ticks_per_metre, self.base.wheel_separation, self.start_pose)
         self.targets = (0.0, 0.0)  # m/s per wheel, as commanded (within the limits)
-        self.ramped = (0.0, 0.0)  # m/s per wheel, on their way to the targets
         self.sent: tuple[int, int] | None = None
         self._sent_at = -math.inf
         self._last_command = -math.inf
         self._watchdog_tripped = True
         self._last_control = monotonic()
         self._encoders: tuple[int, int] | None = None  # the reference for the next step
-        self._encoders_at = 0.0
+        self._encoders_at = 0.0  # when the reference was received
+        self._encoders_seen = -math.inf  # when the last encoder line was used (monotonic)
         self._encoders_micros: int | None = None
         self._micros: int | None = None
         self._micros_at = 0.0
@@ -172,10 +175,10 @@ class ChefbotBase:
             self._control(now - self._last_control, now)
 
     def stop(self) -> None:
-        """Zero at once: no ramp, no PID (the motors brake)."""
+        """Zero at once, without the PID (the motors brake)."""
         now = self.monotonic()
         with self._lock:
-            self.targets = self.ramped = (0.0, 0.0)
+            self.targets = (0.0, 0.0)
             self._last_command = now
             for controller in self.controllers:
                 controller.reset()
@@ -188,8 +191,8 @@ class ChefbotBase:
             if self._watchdog_tripped or now - self._last_command <= self.watchdog_s:
                 return False
             self._watchdog_tripped = True
-            moving = any(self.targets) or any(self.ramped) or (self.sent is not None and any(self.sent))
-            self.targets = self.ramped = (0.0, 0.0)
+            moving = any(self.targets) or (self.sent is not None and any(self.sent))
+            self.targets = (0.0, 0.0)
             for controller in self.controllers:
                 controller.reset()
             self._send(0, 0, now, force=True)
@@ -207,17 +210,14 @@ class ChefbotBase:
                 self.warn.warning("watchdog_error", f"watchdog check failed: {exc!r}")
 
     def _control(self, dt: float, now: float) -> None:
-        """One step of the chain: ramp the targets, run the PIDs, send the outputs."""
+        """One step of the chain: the PIDs on the targets and the measured speeds, then send."""
         dt = min(max(dt, 0.0), 0.1)
         self._last_control = now
-        base = self.base
-        self.ramped = tuple(  # type: ignore[assignment]
-            ramp(current, target, base.max_linear_accel, base.braking, dt)
-            for current, target in zip(self.ramped, self.targets, strict=True)
-        )
+        if now - self._encoders_seen > STALE_S:
+            dt = 0.0  # no news from the encoders: hold the integral
         outputs = [
             controller.step(target, speed.value, dt)
-            for controller, target, speed in zip(self.controllers, self.ramped, self.speeds, strict=True)
+            for controller, target, speed in zip(self.controllers, self.targets, self.speeds, strict=True)
         ]
         self._send(round(outputs[0]), round(outputs[1]), now)
 
@@ -264,7 +264,6 @@ class ChefbotBase:
         self._micros = None
         self._micros_fresh = False
         self._yaw_offset = None
-        self.ramped = (0.0, 0.0)
         for controller, speed in zip(self.controllers, self.speeds, strict=True):
             controller.reset()
             speed.reset()
@@ -308,6 +307,7 @@ class ChefbotBase:
         for speed, step in zip(self.speeds, steps, strict=True):
             speed.add(step, dt)
         now = self.monotonic()
+        self._encoders_seen = now
         self._control(now - self._last_control, now)
 
     def _on_imu(self, message: Quaternion, received: float) -> None:

@@ -5,9 +5,10 @@ within the profile's limits (the driver enforces them; callers are not trusted).
 ``WheelPid`` closes the loop per wheel: the motor output (PWM) that makes the wheel's measured
 speed (from the encoders) follow its target. Unlike the book's node it has a feedforward term
 (the output the target needs on a free wheel), so the integral only makes up for load and
-friction, and anti-windup: while the output is saturated the integral does not grow further in
-the saturating direction, and its share of the output is bounded by the output limit, so a
-stalled wheel does not wind the integral up to a lurch when it frees.
+friction, and anti-windup: the integral accumulates only near the target (``integral_zone``:
+not while the wheel is still accelerating towards a new speed), never further in the direction
+of a saturated output, and its share of the output is bounded by the output limit, so a stalled
+wheel does not wind it up to a lurch when it frees.
 """
 
 from __future__ import annotations
@@ -30,14 +31,6 @@ def wheel_targets(v: float, w: float, base: Base) -> tuple[float, float]:
     top = base.wheel_top_speed
     scale = max(abs(left), abs(right), top) / top
     return left / scale, right / scale
-
-
-def ramp(current: float, target: float, accel: float, decel: float, dt: float) -> float:
-    """Move ``current`` towards ``target`` no faster than the profile's acceleration (or its
-    braking when slowing down without reversing)."""
-    slowing = abs(target) < abs(current) and target * current >= 0
-    step = (decel if slowing else accel) * max(dt, 0.0)
-    return current + max(-step, min(step, target - current))
 
 
 class WheelSpeed:
@@ -90,7 +83,7 @@ class WheelController:
             derivative = (error - self._previous_error) / dt
         self._previous_error = error
         fixed = self.kf * target + g.kp * error + g.kd * derivative
-        if g.ki:
+        if g.ki and abs(error) < g.integral_zone:
             integral = self.integral + error * max(dt, 0.0)
             unclamped = fixed + g.ki * integral
             # integrate only when that does not push a saturated output further out
