@@ -281,3 +281,27 @@ def test_the_pid_saturates_without_winding_up_on_a_stalled_wheel() -> None:
     assert quaternion_yaw == pytest.approx(0.6)
     base.on_message(BatteryVolts(11.0), now[0])
     assert base.read_battery().percent == pytest.approx(100 * 0.5 / 2.1)
+
+
+def test_bench_serial_prints_json_lines() -> None:
+    import json
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parent.parent
+    result = subprocess.run(
+        [sys.executable, "-m", "missions.cli", "bench", "serial", "--quick"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    rows = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [row["bench"] for row in rows] == [
+        "parser",
+        "end_to_end_pty",
+        "command_latency",
+        "command_latency_while_streaming",
+    ]
+    assert rows[1]["lines_parsed"] == rows[1]["lines"] and rows[2]["p99_ms"] > 0

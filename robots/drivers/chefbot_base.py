@@ -38,8 +38,6 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from robots.clock import Clock
 from robots.drivers.diff_odometry import DiffOdometry
 from robots.drivers.launchpad import LaunchpadDriver, RateLimitedLog
@@ -125,6 +123,15 @@ class ChefbotBase:
         self.motor_speeds: tuple[float, float] | None = None  # what the board says it applies
         self._seen: set[type] = set()
         self._ready = threading.Event()
+        self._is_ready = False
+        self._handlers: dict[type, Callable[[Any, float], None]] = {
+            Encoders: self._on_encoders,
+            BoardTime: self._on_time,
+            Quaternion: self._on_imu,
+            Ultrasonic: self._on_sonar,
+            BatteryVolts: self._on_battery,
+            MotorSpeeds: self._on_speeds,
+        }
         self._closing = threading.Event()
         self._watchdog: threading.Thread | None = None
         sonar = profile.interfaces.get("sonar")
@@ -229,23 +236,23 @@ class ChefbotBase:
     # -- from the board (the reader thread) ---------------------------------------------------
 
     def on_message(self, message: Message, received: float) -> None:
+        kind = type(message)
         with self._lock:
-            if isinstance(message, Encoders):
-                self._on_encoders(message, received)
-            elif isinstance(message, BoardTime):
-                self._on_time(message, received)
-            elif isinstance(message, Quaternion):
-                self._on_imu(message, received)
-            elif isinstance(message, Ultrasonic):
-                self.sonar_m = message.cm / 100.0 if message.cm > 0 else math.inf
-            elif isinstance(message, BatteryVolts):
-                self.volts = message.volts
-            elif isinstance(message, MotorSpeeds):
-                self.motor_speeds = (message.left, message.right)
-            if not self._ready.is_set():
-                self._seen.add(type(message))
+            self._handlers[kind](message, received)
+            if not self._is_ready:
+                self._seen.add(kind)
                 if {Encoders, Quaternion, BatteryVolts} <= self._seen:
+                    self._is_ready = True
                     self._ready.set()
+
+    def _on_sonar(self, message: Ultrasonic, received: float) -> None:
+        self.sonar_m = message.cm / 100.0 if message.cm > 0 else math.inf
+
+    def _on_battery(self, message: BatteryVolts, received: float) -> None:
+        self.volts = message.volts
+
+    def _on_speeds(self, message: MotorSpeeds, received: float) -> None:
+        self.motor_speeds = (message.left, message.right)
 
     def on_connect(self) -> None:
         with self._lock:
@@ -330,7 +337,7 @@ class ChefbotBase:
             odometry = self.odometry
             if self.monotonic() - self._encoders_at > 0.5:
                 odometry.still()  # no encoder news: not moving as far as we know
-            return OdometryReading(self.clock.now(), odometry.pose, odometry.twist, np.diag(odometry.variance))
+            return OdometryReading(self.clock.now(), odometry.pose, odometry.twist, odometry.covariance)
 
     def read_imu(self) -> ImuReading:
         with self._lock:

@@ -21,8 +21,8 @@ class DiffOdometry:
         self.separation = wheel_separation
         start = start or Pose2D(0.0, 0.0, 0.0)
         self.x, self.y, self.theta = start.x, start.y, start.theta
-        self.twist = Twist2D(0.0, 0.0)
-        self.variance = np.zeros(3)
+        self.v = self.w = 0.0  # the last step's speeds
+        self.var_xy = self.var_theta = 0.0
         self.distance = 0.0  # m travelled, for reports
 
     def add(self, left_ticks: int, right_ticks: int, dt: float) -> None:
@@ -34,14 +34,23 @@ class DiffOdometry:
         self.y += distance * math.sin(middle)
         self.theta = math.atan2(math.sin(self.theta + d_theta), math.cos(self.theta + d_theta))
         if dt > 0:
-            self.twist = Twist2D(distance / dt, d_theta / dt)
-        self.variance += np.array([(0.02 * distance) ** 2, (0.02 * distance) ** 2, (0.05 * d_theta) ** 2])
+            self.v, self.w = distance / dt, d_theta / dt
+        self.var_xy += (0.02 * distance) ** 2
+        self.var_theta += (0.05 * d_theta) ** 2
         self.distance += abs(distance)
 
     def still(self) -> None:
         """No motion reported for a while (or the link is down): the twist is zero."""
-        self.twist = Twist2D(0.0, 0.0)
+        self.v = self.w = 0.0
 
     @property
     def pose(self) -> Pose2D:
         return Pose2D(self.x, self.y, self.theta)
+
+    @property
+    def twist(self) -> Twist2D:
+        return Twist2D(self.v, self.w)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return np.diag([self.var_xy, self.var_xy, self.var_theta])
