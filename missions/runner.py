@@ -132,6 +132,9 @@ def run(
     stopped = ""
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
         sim = _simulator(checked, seed, clock, backend, port)
+        if sim is not None and backend != "sim":  # connecting took a while: mission time starts now
+            clock = WallClock(mission.rate_hz)
+            sim.use_clock(clock)
         services = RobotServices.for_robot(sim.devices, *_map_and_profile(sim), clock) if sim is not None else None
         engine = Engine(
             clock=clock,

@@ -56,6 +56,10 @@ class SerialBackend:
         self.devices: dict[str, Any] = dict(self.base.devices)
         self.not_connected = sorted(set(profile.interfaces) - set(self.devices))
 
+    def use_clock(self, clock: Clock) -> None:
+        """Stamp readings with this clock from now on (the run's, started once the robot is up)."""
+        self.base.clock = clock
+
     def step(self) -> None:
         """Nothing to move: the robot moves itself; readings arrive on the reader thread."""
 

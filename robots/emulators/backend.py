@@ -70,6 +70,14 @@ class EmulatorBackend:
         self.not_simulated = sorted(set(profile.interfaces) - set(self.devices))
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
 
+    def use_clock(self, clock: Clock) -> None:
+        """Stamp readings with this clock from now on (the run's, started once the robot is up)."""
+        self.clock = clock
+        self.serial.use_clock(clock)
+        laser = self.devices.get("laser")
+        if isinstance(laser, _LockedLaser):
+            laser.laser.clock = clock
+
     def step(self) -> None:
         with self.lock:
             pose = self.world.body.pose
