@@ -2,13 +2,13 @@
 
 ``wheel_targets`` turns (v, ω) into the two wheels' speeds for the base's wheel separation,
 within the profile's limits (the driver enforces them; callers are not trusted).
-``WheelPid`` closes the loop per wheel: the motor output (PWM) that makes the wheel's measured
-speed (from the encoders) follow its target. Unlike the book's node it has a feedforward term
-(the output the target needs on a free wheel), so the integral only makes up for load and
-friction, and anti-windup: the integral accumulates only near the target (``integral_zone``:
-not while the wheel is still accelerating towards a new speed), never further in the direction
-of a saturated output, and its share of the output is bounded by the output limit, so a stalled
-wheel does not wind it up to a lurch when it frees.
+``WheelController`` closes the loop per wheel (gains: the profile's ``control.pid``): the motor
+output (PWM) that makes the wheel's measured speed (from the encoders) follow its target. Unlike
+the book's node it has a feedforward term (the output the target needs on a free wheel), so the
+integral only makes up for load and friction, and anti-windup: the integral accumulates only
+near the target (``integral_zone``: not while the wheel is still accelerating towards a new
+speed), never further in the direction of a saturated output, and its share of the output is
+bounded by the output limit, so a stalled wheel does not wind it up to a lurch when it frees.
 """
 
 from __future__ import annotations
