@@ -86,7 +86,11 @@ def _live_progress(live: Live):
 @app.command()
 def run(
     mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the hello mission)"),
-    backend: str = typer.Option("sim", help="sim (the built-in simulator) or hardware"),
+    backend: str = typer.Option(
+        "sim",
+        help="sim (the built-in simulator), emulator (the simulated robot through its emulated board) or hardware",
+    ),
+    port: str | None = typer.Option(None, help="with --backend hardware: the robot's serial port, e.g. /dev/ttyACM0"),
     seed: int | None = typer.Option(None, help="random seed (default: the mission's)"),
     until: float | None = typer.Option(None, help="stop after this many seconds of mission time"),
     realtime: bool = typer.Option(False, help="pace the simulation at wall-clock speed"),
@@ -99,7 +103,9 @@ def run(
 
     try:
         if quiet or not console.is_terminal:
-            result = run_mission(mission, backend=backend, seed=seed, until=until, realtime=realtime, out=out)
+            result = run_mission(
+                mission, backend=backend, seed=seed, until=until, realtime=realtime, out=out, port=port
+            )
         else:
             with Live(console=console, refresh_per_second=8, transient=True) as live:
                 result = run_mission(
@@ -110,6 +116,7 @@ def run(
                     realtime=realtime,
                     out=out,
                     progress=_live_progress(live),
+                    port=port,
                 )
     except MissionInvalid as exc:
         raise _fail([str(p) for p in exc.problems]) from None
@@ -428,6 +435,179 @@ def gallery(
         raise _fail(f"error: cannot serve on {host}:{port}: {exc.strerror or exc}", 2) from None
 
 
+def _robot_place(profile_name: str, world: str, start: str):
+    """A shipped or given profile, a map, and a start (a place of the map or "x,y,theta")."""
+    from robots.gridmap import load as load_map
+    from robots.interfaces import Pose2D
+    from robots.profile import load_profile, profile_path
+    from robots.sim.backend import map_path
+
+    path = profile_path(profile_name)
+    profile, problems, _ = load_profile(path) if path is not None else (None, [], None)
+    if profile is None:
+        raise _fail([str(p) for p in problems] or [f"error: unknown robot {profile_name!r}"], 2)
+    where = map_path(world)
+    if where is None:
+        raise _fail(f"error: unknown world {world!r}", 2)
+    grid = load_map(where)
+    if start in grid.places:
+        return profile, grid, Pose2D(*grid.places[start])
+    try:
+        x, y, theta = (float(part) for part in start.split(","))
+    except ValueError:
+        known = ", ".join(sorted(grid.places)) or "none"
+        raise _fail(f"error: start {start!r} is neither a place of {world} ({known}) nor x,y,theta", 2) from None
+    return profile, grid, Pose2D(x, y, theta)
+
+
+@app.command()
+def emulate(
+    board: str = typer.Argument(..., help="the board to emulate: launchpad (Chefbot's Tiva C)"),
+    world: str = typer.Option("restaurant", help="the map the simulated robot drives on"),
+    start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
+    seed: int = typer.Option(0, help="the simulated world's seed"),
+    counter_start: int = typer.Option(0, help="the encoders' first count (near 2147483647 to test wrap-around)"),
+) -> None:
+    """Play a robot's board on a pseudo-terminal, driving the simulated robot; until Ctrl-C.
+
+    Connect a driver (or `miniterm.py`) to the path it prints. Faults, typed on standard input:
+    `garbage N`, `drop N`, `stall left|right|none`, `unplug SECONDS`, `reset`, `status`.
+    """
+    import threading
+
+    if board != "launchpad":
+        raise _fail(f"error: unknown board {board!r}; boards: launchpad", 2)
+    from robots.emulators.launchpad import LaunchpadEmulator
+    from robots.sim.world import World
+
+    profile, grid, pose = _robot_place("chefbot", world, start)
+    emulator = LaunchpadEmulator(World(grid, profile, pose, seed), counter_start=counter_start).start()
+    console.print(
+        f"Launchpad emulator: connect to {emulator.path} (now {emulator.pty_path}), 115200 8N1", highlight=False
+    )
+    console.print("Ctrl-C stops; faults: garbage N, drop N, stall left|right|none, unplug SECONDS, reset, status")
+    stop = threading.Event()
+
+    def faults() -> None:
+        for line in sys.stdin:
+            words = line.split()
+            try:
+                if words[:1] == ["garbage"]:
+                    emulator.inject_garbage(int(words[1]))
+                elif words[:1] == ["drop"]:
+                    emulator.drop_lines(int(words[1]))
+                elif words[:1] == ["stall"]:
+                    emulator.stall(None if words[1] == "none" else words[1])
+                elif words[:1] == ["unplug"]:
+                    emulator.disconnect(float(words[1]))
+                elif words[:1] == ["reset"]:
+                    emulator.board_reset()
+                elif words[:1] == ["status"]:
+                    pose = emulator.world.body.pose
+                    console.print(
+                        f"pose {pose.x:.3f} {pose.y:.3f} {pose.theta:+.3f}  motors {emulator.speeds}  "
+                        f"{dict(emulator.counters)}",
+                        highlight=False,
+                    )
+                elif words:
+                    console.print(f"unknown fault {words[0]!r}", highlight=False)
+            except (IndexError, ValueError):
+                console.print(f"cannot read {line.strip()!r}", highlight=False)
+        stop.wait()  # end of input: keep running until Ctrl-C
+
+    threading.Thread(target=faults, daemon=True).start()
+    try:
+        while not stop.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        emulator.close()
+
+
+@app.command()
+def teleop(
+    robot: str = typer.Argument("chefbot", help="the robot's profile"),
+    backend: str = typer.Option("sim", help="sim, emulator (the board emulated on a pty) or hardware"),
+    port: str | None = typer.Option(None, help="with --backend hardware: the serial port, e.g. /dev/ttyACM0"),
+    world: str = typer.Option("restaurant", help="the map (sim and emulator)"),
+    start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
+    seed: int = typer.Option(0, help="the simulated world's seed"),
+    rate_hz: float = typer.Option(10.0, "--rate", help="commands a second"),
+    linear_step: float = typer.Option(0.05, help="m/s a key adds"),
+    angular_step: float = typer.Option(0.2, help="rad/s a key adds"),
+) -> None:
+    """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits."""
+    from missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
+    from robots.clock import WallClock
+
+    if backend not in ("sim", "emulator", "hardware"):
+        raise _fail(f"error: unknown backend {backend!r}: use sim, emulator or hardware", 2)
+    if backend == "hardware" and not port:
+        raise _fail("error: the hardware backend needs the robot's serial port: --port /dev/ttyACM0", 2)
+    profile, grid, pose = _robot_place(robot, world, start)
+    clock = WallClock(rate_hz)
+    try:
+        if backend == "sim":
+            from robots.sim.backend import SimBackend
+
+            robot_backend = SimBackend(profile, grid, pose, seed, clock)
+        elif backend == "emulator":
+            from robots.emulators.backend import EmulatorBackend
+
+            robot_backend = EmulatorBackend(profile, grid, pose, seed, clock)
+        else:
+            from robots.drivers.backend import SerialBackend
+
+            robot_backend = SerialBackend(profile, clock, port or "", pose)
+    except (ValueError, ConnectionError) as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    devices = robot_backend.devices
+    if "drive" not in devices:
+        robot_backend.close()
+        raise _fail(f"error: robot {robot!r} has no drive", 2)
+    state = Teleop(profile.base.max_linear, profile.base.max_angular, linear_step, angular_step)
+    interactive = sys.stdin.isatty() and sys.stdout.isatty()
+    console.print(HELP, highlight=False)
+
+    def show(line: str) -> None:
+        if interactive:
+            sys.stdout.write("\r\x1b[K" + line)
+            sys.stdout.flush()
+        else:
+            console.print(line, highlight=False)
+
+    try:
+        if interactive:
+            with TerminalKeys.opened() as keys:
+                run_teleop(
+                    devices["drive"],
+                    keys,
+                    clock,
+                    state,
+                    step=robot_backend.step,
+                    odometry=devices.get("odometry"),
+                    show=show,
+                )
+        else:
+            run_teleop(
+                devices["drive"],
+                StreamKeys(sys.stdin),
+                clock,
+                state,
+                step=robot_backend.step,
+                odometry=devices.get("odometry"),
+                show=show,
+            )
+    except KeyboardInterrupt:
+        pass
+    finally:
+        robot_backend.close()
+    if interactive:
+        sys.stdout.write("\n")
+    console.print("stopped", highlight=False)
+
+
 def _load_bench(name: str) -> ModuleType:
     root = Path(__file__).resolve().parent.parent / "tests" / "bench"
     path = root / f"bench_{name}.py"
@@ -500,6 +680,15 @@ def bench_upload(quick: bool = typer.Option(False, help="fewer photos: a smoke t
     slow = [r["bench"] for r in results if r.get("ratio", float("inf")) < r.get("target_ratio", 0)]
     if slow and not quick:
         _stderr([f"under target: {', '.join(slow)}"])
+
+
+@bench_app.command("serial")
+def bench_serial(quick: bool = typer.Option(False, help="smaller buffers, fewer commands: a smoke test")) -> None:
+    """Chefbot's Launchpad link: lines parsed per second (parser alone and through a pty), command latency."""
+    results = _load_bench("serial").main(quick=quick)
+    missed = [r["bench"] for r in results if not r.get("meets_target", True)]
+    if missed and not quick:
+        _stderr([f"target missed: {', '.join(missed)}"])
 
 
 def main() -> None:  # pragma: no cover - console script entry

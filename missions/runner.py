@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import py_trees
 from py_trees.common import Status
@@ -31,13 +31,18 @@ from missions.loader import Problem
 from missions.services import RobotServices
 from missions.transcript import write_transcript
 from robots.clock import Clock, SimClock, WallClock
+from robots.gridmap import GridMap
 from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
-from robots.profile import load_profile, profile_path
+from robots.profile import Profile, load_profile, profile_path
 from robots.sim.backend import SimBackend, known_maps, map_path
 from skills.registry import Registry
 
-BACKENDS = ("sim", "hardware")
+if TYPE_CHECKING:  # the serial backends load pyserial and ptys only when a run asks for them
+    from robots.drivers.backend import SerialBackend
+    from robots.emulators.backend import EmulatorBackend
+
+BACKENDS = ("sim", "emulator", "hardware")
 WALL_CLOCK_FIELDS = ("wall_time_s", "overruns")
 
 
@@ -96,11 +101,14 @@ def run(
     registry: Registry | None = None,
     blackboard: dict[str, Any] | None = None,
     before_tick: Callable[[Engine], None] | None = None,
+    port: str | None = None,
 ) -> RunResult:
     """Check and run a mission.
 
     Scenario tests pass a ``registry`` with mocks, ``blackboard`` overrides of initial values and
     a ``before_tick`` hook (scripted events, `never` conditions); a hook may raise ``StopRun``.
+    The ``emulator`` and ``hardware`` backends run in real time: the first drives the simulated
+    robot through its emulated board over a pty, the second the robot on ``port``.
     """
     checked = check(path, registry)
     if not checked.ok:
@@ -108,24 +116,27 @@ def run(
     mission = checked.mission
     assert mission is not None
     if backend not in BACKENDS:
-        raise RunError(f"unknown backend {backend!r}: use {' or '.join(BACKENDS)}")
-    if backend == "hardware":
-        if mission.robot is None:
-            raise RunError(
-                f"mission {mission.name!r} names no robot: there is no hardware to drive "
-                "(run it on the simulator: --backend sim)"
-            )
-        raise RunError(f"no hardware drivers for robot {mission.robot!r} yet")
+        raise RunError(f"unknown backend {backend!r}: use sim, emulator or hardware")
+    if backend != "sim" and mission.robot is None:
+        raise RunError(
+            f"mission {mission.name!r} names no robot: there is no hardware to drive "
+            "(run it on the simulator: --backend sim)"
+        )
+    if backend == "hardware" and not port:
+        raise RunError("the hardware backend needs the robot's serial port: --port /dev/ttyACM0")
     seed = mission.seed if seed is None else seed
     until = mission.until if until is None else until
     folder = run_folder(mission.name, out)
-    clock: Clock = WallClock(mission.rate_hz) if realtime else SimClock(mission.rate_hz)
+    clock: Clock = WallClock(mission.rate_hz) if realtime or backend != "sim" else SimClock(mission.rate_hz)
     started = time.perf_counter()
     interrupted = False
     stopped = ""
     with (folder / "trace.jsonl").open("w", encoding="utf-8") as sink:
-        sim = _simulator(checked, seed, clock) if backend == "sim" else None
-        services = RobotServices.for_sim(sim, clock) if sim is not None else None
+        sim = _simulator(checked, seed, clock, backend, port)
+        if sim is not None and backend != "sim":  # connecting took a while: mission time starts now
+            clock = WallClock(mission.rate_hz)
+            sim.use_clock(clock)
+        services = RobotServices.for_robot(sim.devices, *_map_and_profile(sim), clock) if sim is not None else None
         # the upload skill's outboxes (and a gallery when none is configured): nothing opens unless used
         uploads = run_uploads(folder, clock, seed)
         devices = {**sim.devices, **services.interfaces} if sim is not None and services is not None else {}
@@ -193,9 +204,10 @@ def run(
     if blackboard:
         summary["blackboard_overrides"] = jsonable(blackboard)  # what a replay must set again
     if sim is not None:
-        summary["sim"] = sim.summary()
+        summary[backend] = sim.summary()
     if services is not None and services.localizer is not None:
-        summary["localization"] = services.summary(sim.world.body.pose if sim is not None else None)
+        world = getattr(sim, "world", None)  # a real robot's true pose is unknown
+        summary["localization"] = services.summary(world.body.pose if world is not None else None)
     if upload_summary is not None:
         summary["upload"] = upload_summary
         fill_counters(summary["counters"], upload_summary)
@@ -209,8 +221,11 @@ def run(
     return RunResult(outcome, reason, folder, summary, final_blackboard)
 
 
-def _simulator(checked: Checked, seed: int, clock: Clock) -> SimBackend | None:
-    """The simulated robot of a mission with a robot and a world; None for robot-less missions."""
+def _simulator(
+    checked: Checked, seed: int, clock: Clock, backend: str = "sim", port: str | None = None
+) -> SimBackend | EmulatorBackend | SerialBackend | None:
+    """The robot of a mission with a robot and a world (simulated, emulated or real); None for
+    robot-less missions."""
     mission = checked.mission
     assert mission is not None
     if mission.robot is None:
@@ -225,13 +240,28 @@ def _simulator(checked: Checked, seed: int, clock: Clock) -> SimBackend | None:
     assert profile is not None
     x, y, theta = start_pose(mission, grid.places)
     try:
+        if backend == "emulator":
+            from robots.emulators.backend import EmulatorBackend
+
+            return EmulatorBackend(profile, grid, Pose2D(x, y, theta), seed, clock, people=mission.people)
+        if backend == "hardware":
+            from robots.drivers.backend import SerialBackend
+
+            return SerialBackend(profile, clock, port or "", Pose2D(x, y, theta), grid=grid)
         gatherings = [
             (g.time, tuple(grid.places[g.at][:2]) if isinstance(g.at, str) else (g.at[0], g.at[1]), g.size, g.stay)
             for g in mission.gatherings
         ]
         return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock, people=mission.people, gatherings=gatherings)
-    except ValueError as exc:
+    except (ValueError, ConnectionError) as exc:
         raise RunError(str(exc)) from None
+
+
+def _map_and_profile(backend: SimBackend | EmulatorBackend | SerialBackend) -> tuple[GridMap, Profile]:
+    world = getattr(backend, "world", None)
+    if world is not None:
+        return world.grid, world.profile
+    return backend.grid, backend.profile  # type: ignore[union-attr]
 
 
 def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> py_trees.behaviour.Behaviour:

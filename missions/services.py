@@ -13,7 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from robots.clock import Clock
+from robots.gridmap import GridMap
 from robots.interfaces import Pose2D
+from robots.profile import Profile
 from robots.sim.backend import SimBackend
 from skills.nav.ekf import wrap
 from skills.nav.localization import Localizer
@@ -31,11 +33,14 @@ class RobotServices:
 
     @classmethod
     def for_sim(cls, sim: SimBackend, clock: Clock) -> RobotServices:
+        return cls.for_robot(sim.devices, sim.world.grid, sim.world.profile, clock)
+
+    @classmethod
+    def for_robot(cls, devices: dict[str, Any], grid: GridMap, profile: Profile, clock: Clock) -> RobotServices:
+        """The services for any backend's devices (simulated, emulated or real) on the run's map."""
         services = cls()
-        devices = sim.devices
         if "odometry" not in devices or "drive" not in devices:
             return services  # a robot that cannot tell where it is does not navigate
-        grid, profile = sim.world.grid, sim.world.profile
         # the run starts where the mission put the robot: the localiser is told so, as an operator
         # (or a dock) tells a real robot; from then on only the devices and the map are used
         localizer = Localizer.for_devices(devices, grid, profile)

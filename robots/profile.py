@@ -79,6 +79,30 @@ class Device(_Strict):
     noise: float | None = Field(default=None, ge=0, description="std of the measurement noise")
 
 
+class WheelPid(_Strict):
+    """The serial drivers' wheel velocity loop (the book's pid_velocity.py): a motor output
+    (PWM, -255..255) per wheel from its target and measured speed. Tunable per robot."""
+
+    kp: float = Field(default=400.0, ge=0, description="PWM per m/s of speed error")
+    ki: float = Field(default=4000.0, ge=0, description="PWM per m of accumulated speed error")
+    kd: float = Field(default=0.0, ge=0, description="PWM per m/s² of change in the error")
+    kf: float | None = Field(
+        default=None, ge=0, description="feedforward PWM per m/s of target; default: full output at the top speed"
+    )
+    integral_zone: float = Field(
+        default=0.05, gt=0, description="m/s: the integral accumulates only while the error is smaller"
+    )
+    output_limit: float = Field(default=255.0, gt=0, le=255, description="the largest motor output sent")
+    smoothing: int = Field(default=2, ge=1, le=20, description="encoder speed samples averaged (rolling_pts)")
+
+
+class Control(_Strict):
+    """How a hardware driver drives the base; optional in a profile (these are the defaults)."""
+
+    pid: WheelPid = Field(default_factory=WheelPid)
+    watchdog_s: float = Field(default=0.5, gt=0, description="s without a velocity command before the motors stop")
+
+
 class Profile(_Strict):
     name: str
     description: str = ""
@@ -86,6 +110,7 @@ class Profile(_Strict):
     battery: BatterySpec
     interfaces: dict[str, Device]
     skills: dict[str, dict[str, Any]] = Field(default_factory=dict, description="default skill parameters")
+    control: Control = Field(default_factory=Control)
 
 
 def known_profiles() -> list[str]:

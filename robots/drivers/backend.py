@@ -1,0 +1,73 @@
+"""A real robot as a run's backend: its hardware drivers on a serial port, giving the devices
+for the interfaces the profile assigns to them (the same ``devices`` dict the simulator gives).
+
+Only the Chefbot's Launchpad exists so far; an interface whose driver does not exist yet (the
+Chefbot's depth camera, ``hardware: astra``) is listed in ``not_connected`` and left out.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from robots.clock import Clock
+from robots.drivers.chefbot_base import LAUNCHPAD, open_chefbot
+from robots.gridmap import GridMap
+from robots.interfaces import Pose2D
+from robots.profile import Profile
+
+DRIVERS = (LAUNCHPAD,)
+
+
+def drivable(profile: Profile) -> bool:
+    """True when a driver here provides the profile's drive."""
+    drive = profile.interfaces.get("drive")
+    return drive is not None and drive.hardware in DRIVERS
+
+
+class SerialBackend:
+    """The Launchpad on ``port``; the robot starts at ``start`` (its odometry's origin, as an
+    operator or a dock tells a real robot where it is)."""
+
+    def __init__(
+        self,
+        profile: Profile,
+        clock: Clock,
+        port: str,
+        start: Pose2D,
+        *,
+        grid: GridMap | None = None,
+        ready_timeout: float = 5.0,
+        **options: Any,
+    ) -> None:
+        if not drivable(profile):
+            raise ValueError(f"no hardware driver for robot {profile.name!r} yet (drivers: {', '.join(DRIVERS)})")
+        self.profile = profile
+        self.grid = grid  # the map of where the robot is, for localisation and navigation
+        self.port = port
+        self.base = open_chefbot(port, profile, clock, start, **options)
+        if not self.base.wait_ready(ready_timeout):
+            stats = self.base.link.stats()
+            self.base.close()
+            raise ConnectionError(
+                f"no readings from the Launchpad on {port} within {ready_timeout:g} s "
+                f"(connected: {stats['connected']}, lines parsed: {sum(stats['lines_ok'].values())})"
+            )
+        self.devices: dict[str, Any] = dict(self.base.devices)
+        self.not_connected = sorted(set(profile.interfaces) - set(self.devices))
+
+    def use_clock(self, clock: Clock) -> None:
+        """Stamp readings with this clock from now on (the run's, started once the robot is up)."""
+        self.base.clock = clock
+
+    def step(self) -> None:
+        """Nothing to move: the robot moves itself; readings arrive on the reader thread."""
+
+    def close(self) -> None:
+        self.base.close()  # zero speed, then the port
+
+    def write_trajectory(self, path: Path) -> None:
+        """A real robot's true path is unknown: no trajectory.csv (odometry is in the summary)."""
+
+    def summary(self) -> dict[str, Any]:
+        return {**self.base.summary(), "not_connected": self.not_connected}

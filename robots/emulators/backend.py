@@ -1,0 +1,114 @@
+"""The Chefbot over its emulated Launchpad: the whole byte path of a real robot, in simulation.
+
+The emulator plays the board on a pty and moves the simulated world in its own thread, in real
+time; the real driver (``SerialBackend``) connects to the pty, and the devices the profile
+gives the Launchpad come from it. Interfaces on other hardware (the depth camera's scan) come
+from the same simulated world, read under the emulator's lock. ``step()`` only records the
+true path for the report: the world moves by itself.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from pathlib import Path
+from typing import Any
+
+from robots.clock import Clock
+from robots.drivers.backend import SerialBackend
+from robots.emulators.launchpad import LaunchpadEmulator
+from robots.gridmap import GridMap
+from robots.interfaces import LaserScan, Pose2D
+from robots.profile import Profile
+from robots.sim.devices import SimLaser
+from robots.sim.people import PERSON_RADIUS, Crowd
+from robots.sim.world import World
+
+
+class _LockedLaser:
+    """The simulated laser, read while the emulator's thread may be stepping the world."""
+
+    def __init__(self, laser: SimLaser, lock: threading.Lock) -> None:
+        self.laser = laser
+        self.lock = lock
+
+    def scan(self) -> LaserScan:
+        with self.lock:
+            return self.laser.scan()
+
+
+class EmulatorBackend:
+    def __init__(
+        self,
+        profile: Profile,
+        grid: GridMap,
+        start: Pose2D,
+        seed: int,
+        clock: Clock,
+        people: int = 0,
+        **emulator_options: Any,
+    ) -> None:
+        self.clock = clock
+        self.lock = threading.Lock()
+        self.world = World(grid, profile, start, seed)
+        self.crowd = Crowd.populate(grid, self.world.rng, people, avoid=(start.x, start.y))
+        self.world.movers = self.crowd.positions
+        self.world.mover_radius = PERSON_RADIUS
+        self.crowd.robot = lambda: (self.world.body.pose.x, self.world.body.pose.y)
+        self.crowd.robot_radius = profile.base.footprint_radius
+        steps = [self.crowd.step] if self.crowd.people else []
+        self.emulator = LaunchpadEmulator(self.world, world_lock=self.lock, extra_steps=steps, **emulator_options)
+        self.emulator.start()
+        try:
+            self.serial = SerialBackend(profile, clock, self.emulator.path, start)
+        except Exception:
+            self.emulator.close()
+            raise
+        self.devices: dict[str, Any] = dict(self.serial.devices)
+        if "laser" in profile.interfaces and "laser" not in self.devices:
+            self.devices["laser"] = _LockedLaser(SimLaser(self.world, profile.interfaces["laser"], clock), self.lock)
+        self.not_simulated = sorted(set(profile.interfaces) - set(self.devices))
+        self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
+
+    def use_clock(self, clock: Clock) -> None:
+        """Stamp readings with this clock from now on (the run's, started once the robot is up)."""
+        self.clock = clock
+        self.serial.use_clock(clock)
+        laser = self.devices.get("laser")
+        if isinstance(laser, _LockedLaser):
+            laser.laser.clock = clock
+
+    def step(self) -> None:
+        with self.lock:
+            pose = self.world.body.pose
+            self.trajectory.append((self.world.time, pose.x, pose.y, pose.theta))
+
+    def close(self) -> None:
+        try:
+            self.serial.close()  # zero speed first, through the pty
+        finally:
+            self.emulator.close()
+
+    def write_trajectory(self, path: Path) -> None:
+        lines = ["t,x,y,theta"] + [f"{t:.6g},{x:.6f},{y:.6f},{theta:.6f}" for t, x, y, theta in self.trajectory]
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+    def summary(self) -> dict[str, Any]:
+        distance = sum(
+            math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(self.trajectory, self.trajectory[1:], strict=False)
+        )
+        with self.lock:
+            final = self.world.body.pose
+            world = {
+                "distance_m": round(distance, 4),
+                "final_pose": [round(final.x, 4), round(final.y, 4), round(final.theta, 4)],
+                "bumps": self.world.body.bumps,
+                "people": len(self.crowd.people),
+                "battery_percent": round(self.world.battery_percent, 3),
+                "not_simulated": self.not_simulated,
+            }
+        return {
+            **world,
+            "serial": self.serial.summary(),
+            "board": dict(sorted(self.emulator.counters.items())),
+        }

@@ -1,0 +1,307 @@
+"""The Launchpad driver and its controller chain on a real pseudo-terminal (the test plays the board),
+and the chain alone with an injectable clock."""
+
+from __future__ import annotations
+
+import logging
+import math
+import random
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from robots.clock import SimClock
+from robots.drivers.chefbot_base import ChefbotBase, open_chefbot
+from robots.drivers.launchpad import RateLimitedLog
+from robots.drivers.launchpad_protocol import BatteryVolts, BoardTime, Encoders, Quaternion
+from robots.drivers.wheel_control import wheel_targets
+from robots.interfaces import Battery, Drive, Imu, Odometry, Pose2D, Sonar, check_interfaces
+from tests.launchpad_helpers import Board, chefbot, commands, wait_until
+from tests.test_launchpad_protocol import VALID, mutate
+
+PROFILE = chefbot()
+PER_METRE = PROFILE.base.ticks_per_metre
+START = Pose2D(1.0, 2.0, 0.5)
+
+
+@pytest.fixture
+def board(tmp_path: Path) -> Iterator[Board]:
+    board = Board(tmp_path)
+    yield board
+    board.close()
+
+
+@pytest.fixture
+def robot(board: Board) -> Iterator[ChefbotBase]:
+    base = open_chefbot(board.path, PROFILE, SimClock(10), START, backoff=(0.02, 0.2), silence_s=60)
+    assert base.link.wait_connected(5)
+    yield base
+    base.close()
+
+
+def lines(*items: bytes) -> bytes:
+    return b"".join(item + b"\n" for item in items)
+
+
+def greet(board: Board, left: int = 0, right: int = 0, micros: int = 1_000_000) -> None:
+    board.send(lines(b"t\t%d\t0.02" % micros, b"e\t%d\t%d" % (left, right), b"i\t0\t0\t0\t1", b"b\t12.30", b"u\t0"))
+
+
+def test_readings_reach_the_robot_interfaces(board: Board, robot: ChefbotBase) -> None:
+    greet(board)
+    assert robot.wait_ready(5)
+    assert check_interfaces(robot.devices) == []
+    devices = robot.devices
+    assert isinstance(devices["drive"], Drive) and isinstance(devices["odometry"], Odometry)
+    assert isinstance(devices["imu"], Imu) and isinstance(devices["sonar"], Sonar)
+    assert isinstance(devices["battery"], Battery) and "laser" not in devices  # the depth camera is not on the board
+    assert devices["imu"].read().yaw == pytest.approx(START.theta)  # the DMP's zero is the start heading
+    assert math.isinf(devices["sonar"].read().range)  # 0 cm: no echo
+    battery = devices["battery"].read()
+    assert battery.voltage == 12.3 and battery.percent == pytest.approx(100 * (12.3 - 10.5) / 2.1)
+    # both wheels 0.5 m forward and a quarter turn of the IMU, in steps the wheels can make
+    ticks = 0
+    for k in range(1, 41):
+        ticks = round(k * 0.5 / 40 * PER_METRE)
+        board.send(lines(b"t\t%d\t0.02" % (1_000_000 + 20_000 * k), b"e\t%d\t%d" % (ticks, ticks)))
+    board.send(lines(b"i\t0\t0\t0.7071\t0.7071", b"u\t87"))
+    assert wait_until(lambda: robot.odometry.distance > 0.499)
+    pose = devices["odometry"].read().pose
+    assert (pose.x, pose.y) == pytest.approx((START.x + 0.5 * math.cos(0.5), START.y + 0.5 * math.sin(0.5)), abs=1e-3)
+    assert wait_until(lambda: devices["sonar"].read().range == 0.87)
+    assert devices["imu"].read().yaw == pytest.approx(START.theta + math.pi / 2, abs=1e-3)
+    assert robot.link.stats()["lines_bad"] == {}
+
+
+def test_encoder_counters_wrap_around_without_a_jump(board: Board, robot: ChefbotBase) -> None:
+    top = 2**31 - 1
+    start = top - 1000
+    greet(board, start, start)
+    assert robot.wait_ready(5)
+    for k in range(1, 21):  # 20 steps of 100 ticks: across 2**31 - 1 -> -2**31
+        count = (start + 100 * k + 2**31) % 2**32 - 2**31
+        board.send(lines(b"t\t%d\t0.02" % (1_000_000 + 20_000 * k), b"e\t%d\t%d" % (count, count)))
+    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] == 21)
+    assert count < 0  # it did wrap
+    assert robot.odometry.distance == pytest.approx(2000 / PER_METRE)
+    assert robot.counters["board_resets"] == 0 and robot.counters["encoder_jumps"] == 0
+
+
+def test_a_board_reset_is_counted_and_the_pose_continues(
+    board: Board, robot: ChefbotBase, caplog: pytest.LogCaptureFixture
+) -> None:
+    greet(board, 5000, 5000, micros=50_000_000)
+    assert robot.wait_ready(5)
+    board.send(lines(b"t\t50020000\t0.02", b"e\t5100\t5100"))
+    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] == 2)
+    before = robot.odometry.pose
+    caplog.set_level(logging.WARNING)
+    # the board rebooted: its clock and its counters start again from zero
+    board.send(b"Reset Done\r\n" + lines(b"t\t1200\t0.00", b"e\t0\t0", b"i\t0\t0\t0\t1"))
+    board.send(lines(b"t\t21200\t0.02", b"e\t100\t100"))
+    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] == 4)
+    assert robot.counters["board_resets"] == 1
+    after = robot.odometry.pose
+    assert after.x - before.x == pytest.approx(100 / PER_METRE * math.cos(START.theta), abs=1e-6)  # no jump
+    assert robot.read_imu().yaw == pytest.approx(START.theta)  # the IMU's new zero is re-aligned
+    # without its clock line, a counter jump the wheels cannot make is a reset too
+    board.send(lines(b"e\t-90000\t7"))
+    assert wait_until(lambda: robot.counters["encoder_jumps"] == 1)
+    assert robot.counters["board_resets"] == 2
+    assert any("Launchpad reset" in record.message for record in caplog.records)
+
+
+def test_warnings_are_rate_limited() -> None:
+    now = [0.0]
+    records: list[str] = []
+
+    class Sink(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record.getMessage())
+
+    logger = logging.getLogger("test.ratelimit")
+    logger.addHandler(Sink())
+    logger.propagate = False
+    warn = RateLimitedLog(logger, interval_s=5.0, monotonic=lambda: now[0])
+    for i in range(100):
+        now[0] = i * 0.1  # 100 warnings over 10 s
+        warn.warning("reset", "the board reset")
+    assert records == ["the board reset", "the board reset (49 more like it since the last report)"]
+
+
+def test_fuzz_megabytes_through_the_pty(board: Board, robot: ChefbotBase) -> None:
+    """Random bytes and mutated lines around valid ones (2 MB), through the real pty: the reader
+    keeps going, and every valid line among them (one that starts a line) is parsed."""
+    rng = random.Random(3)
+    chunks, valid, size = [b"\n"], 0, 0
+    while size < 2_000_000:
+        roll = rng.random()
+        if roll < 0.3:
+            piece = rng.choice(VALID) + b"\n"
+            valid += chunks[-1].endswith(b"\n")  # noise before it on its line makes it noise too
+        elif roll < 0.65:
+            piece = mutate(rng.choice(VALID), rng) + b"\n"
+        else:
+            piece = rng.randbytes(rng.randint(1, 300))  # raw noise, newlines and all
+        chunks.append(piece)
+        size += len(piece)
+    stream = b"".join(chunks)
+    board.send(stream)
+    assert wait_until(lambda: robot.link.decoder.bytes >= len(stream), timeout=30)
+    parsed = robot.link.decoder.lines_ok
+    assert valid <= parsed <= valid * 1.3, (valid, parsed)
+    assert robot.link.counters["listener_errors"] == 0
+    assert robot.link.connected and robot.link._thread is not None and robot.link._thread.is_alive()
+
+
+def test_unplug_and_replug_reconnects_and_sends_zero_first(board: Board, robot: ChefbotBase) -> None:
+    greet(board)
+    assert robot.wait_ready(5)
+    robot.cmd_vel(0.2, 0.0)
+    assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
+    board.unplug()
+    assert wait_until(lambda: not robot.link.connected)
+    assert robot.link.counters["disconnects"] == 1
+    time.sleep(0.3)  # a few failed attempts while the path is gone
+    board.plug()
+    assert wait_until(lambda: robot.link.connected, timeout=5)
+    assert robot.link.counters["connects"] == 2 and robot.link.counters["open_failures"] >= 1
+    assert board.wait_for(lambda data: len(commands(data)) >= 1)
+    assert commands(board.read())[0] == (0, 0)  # the board kept the old speed: zero comes first
+    greet(board, 777, 777)  # new counters are a new reference, not a step
+    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] >= 2)
+    assert robot.counters["encoder_jumps"] == 0
+
+
+def test_a_silent_port_is_reopened(board: Board) -> None:
+    robot = open_chefbot(board.path, PROFILE, SimClock(10), START, silence_s=0.3)
+    try:
+        assert wait_until(lambda: robot.link.counters["connects"] >= 2)
+        assert robot.link.counters["silences"] >= 1
+    finally:
+        robot.close()
+
+
+def test_zero_speed_on_shutdown(board: Board) -> None:
+    robot = open_chefbot(board.path, PROFILE, SimClock(10), START)
+    assert robot.link.wait_connected(5)
+    robot.cmd_vel(0.3, 0.5)
+    assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
+    robot.close()
+    assert board.wait_for(lambda data: commands(data)[-1] == (0, 0))
+    robot.close()  # twice is harmless
+
+
+def test_the_watchdog_stops_after_half_a_second_over_the_pty(board: Board, robot: ChefbotBase) -> None:
+    greet(board)
+    assert robot.wait_ready(5)
+    robot.cmd_vel(0.2, 0.0)
+    commanded = time.monotonic()
+    assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
+    assert board.wait_for(lambda data: commands(data)[-1] == (0, 0), timeout=5)
+    assert time.monotonic() - commanded >= 0.45  # not before its time (a lower bound only)
+    assert robot.counters["watchdog_stops"] == 1
+
+
+class FakeLink:
+    def __init__(self) -> None:
+        self.sent: list[tuple[int, int]] = []
+
+    def send_speeds(self, left: int, right: int) -> bool:
+        self.sent.append((left, right))
+        return True
+
+    def stats(self) -> dict:
+        return {}
+
+    def close(self) -> None:
+        pass
+
+
+def chain(now: list[float], **options) -> tuple[ChefbotBase, FakeLink]:
+    link = FakeLink()
+    base = ChefbotBase(link, PROFILE, SimClock(10), START, monotonic=lambda: now[0], **options)  # type: ignore[arg-type]
+    return base, link
+
+
+def test_the_watchdog_with_an_injected_clock() -> None:
+    now = [100.0]
+    base, link = chain(now)
+    base.cmd_vel(0.2, 0.0)
+    assert link.sent[-1] != (0, 0)
+    now[0] += 0.45
+    assert base.check_watchdog() is False
+    now[0] += 0.1
+    assert base.check_watchdog() is True and link.sent[-1] == (0, 0)
+    assert base.targets == (0.0, 0.0) and base.counters["watchdog_stops"] == 1
+    now[0] += 5
+    assert base.check_watchdog() is False  # once per silence
+    base.cmd_vel(0.2, 0.0)  # the next command drives again
+    assert link.sent[-1] != (0, 0)
+    base, link = chain(now, watchdog_s=2.0)  # configurable (and from the profile's control.watchdog_s)
+    base.cmd_vel(0.2, 0.0)
+    now[0] += 1.5
+    assert base.check_watchdog() is False
+
+
+def test_limits_are_enforced_whatever_the_caller_asks() -> None:
+    base = PROFILE.base
+    assert wheel_targets(5.0, 0.0, base) == pytest.approx((0.35, 0.35))
+    left, right = wheel_targets(0.35, 2.0, base)  # the outer wheel would pass its top speed
+    assert max(abs(left), abs(right)) == pytest.approx(base.wheel_top_speed)
+    assert (right - left) / (left + right) == pytest.approx(2.0 * 0.15 / 0.35)  # the turn keeps its shape
+    now = [0.0]
+    chefbot_base, link = chain(now)
+    chefbot_base.cmd_vel(50.0, -30.0)
+    assert chefbot_base.targets == pytest.approx(wheel_targets(0.35, -2.0, base))
+    with pytest.raises(ValueError, match="finite"):
+        chefbot_base.cmd_vel(math.nan, 0.0)
+    assert link.sent[-1] == (0, 0) and chefbot_base.targets == (0.0, 0.0)  # a broken command stops
+
+
+def test_the_pid_saturates_without_winding_up_on_a_stalled_wheel() -> None:
+    now = [0.0]
+    base, link = chain(now)
+    base.on_message(BoardTime(0, 0.0), now[0])
+    base.on_message(Encoders(0, 0), now[0])
+    for k in range(1, 301):  # 6 s: the left wheel is stalled, the right one turns as asked
+        now[0] = k * 0.02
+        base.cmd_vel(0.3, 0.0)
+        right = round(min(0.3, 0.5 * now[0]) * now[0] * PER_METRE)  # roughly, it does not matter
+        base.on_message(Encoders(0, right), now[0])
+    left_output = link.sent[-1][0]
+    assert left_output == 255  # saturated, and never beyond
+    assert all(abs(a) <= 255 and abs(b) <= 255 for a, b in link.sent)
+    stalled = base.controllers[0]
+    assert abs(stalled.integral) * PROFILE.control.pid.ki <= 2 * 255 + 1e-6  # bounded: no lurch when it frees
+    assert stalled.saturated
+    quaternion_yaw = Quaternion(0.0, 0.0, math.sin(0.3), math.cos(0.3)).yaw
+    assert quaternion_yaw == pytest.approx(0.6)
+    base.on_message(BatteryVolts(11.0), now[0])
+    assert base.read_battery().percent == pytest.approx(100 * 0.5 / 2.1)
+
+
+def test_bench_serial_prints_json_lines() -> None:
+    import json
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parent.parent
+    result = subprocess.run(
+        [sys.executable, "-m", "missions.cli", "bench", "serial", "--quick"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    rows = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [row["bench"] for row in rows] == [
+        "parser",
+        "end_to_end_pty",
+        "command_latency",
+        "command_latency_while_streaming",
+    ]
+    assert rows[1]["lines_parsed"] == rows[1]["lines"] and rows[2]["p99_ms"] > 0
