@@ -31,6 +31,9 @@ class MapError(ValueError):
         super().__init__(f"{file}: {field}: {message}")
 
 
+_FAR = 2**40  # cells: any point farther is simply off the map
+
+
 @dataclass
 class GridMap:
     """``data[row, col]``: 0 free, 100 occupied, -1 unknown (trinary); row 0 is the bottom."""
@@ -59,7 +62,10 @@ class GridMap:
         if yaw:
             c, s = math.cos(-yaw), math.sin(-yaw)
             dx, dy = c * dx - s * dy, s * dx + c * dy
-        return math.floor(dy / self.resolution), math.floor(dx / self.resolution)
+        row, col = dy / self.resolution, dx / self.resolution
+        if not (abs(row) < _FAR and abs(col) < _FAR):  # inf, nan, 1e308: off the map, not an overflow
+            return -1, -1
+        return math.floor(row), math.floor(col)
 
     def cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``cell`` for arrays of points: (rows, cols), possibly outside the grid."""

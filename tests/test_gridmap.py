@@ -167,3 +167,10 @@ def test_named_places_travel_with_the_map(tmp_path: Path) -> None:
     with pytest.raises(MapError, match=r"places.in_wall: \(2.05, 3\) is not on a free cell"):
         load(path)
     shutil.rmtree(tmp_path / "unused", ignore_errors=True)
+
+
+def test_points_far_off_the_map_are_outside_not_an_overflow() -> None:
+    grid = GridMap(np.zeros((4, 4), dtype=np.uint8), 0.5, (0.0, 0.0, 0.0))
+    for x, y in ((1e308, 1.0), (math.inf, 0.0), (math.nan, 1.0), (1.0, -math.inf)):
+        assert not grid.inside(*grid.cell(x, y))
+        assert not grid.is_free(x, y)

@@ -201,7 +201,7 @@ def test_coverage_counts_and_pictures(tmp_path: Path) -> None:
     assert "failure -> stopped (untested)" in text and "preempt: estop -> stopped (untested)" in text
     dot = botstage("machine", "--coverage", str(cov), "--format", "dot").stdout
     assert dot.count('style=dashed, color="#999999"') == 5  # 4 untested transitions and the preemption
-    whole = botstage("test", "--coverage", "--coverage-file", str(cov))
+    whole = botstage("test", "missions/scenarios/hello", "--coverage", "--coverage-file", str(cov))  # the whole suite
     assert "100% (9/9)" in whole.stdout and "untested" not in whole.stdout
 
 
