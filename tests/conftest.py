@@ -106,3 +106,13 @@ def index_of(events: list[dict[str, Any]], **match: Any) -> int:
         if all(event.get(k) == v for k, v in match.items()):
             return i
     raise AssertionError(f"no event matching {match}")
+
+
+@pytest.fixture
+def gallery(tmp_path: Any) -> Iterator[Any]:
+    """A real gallery server on a free loopback port, stopped after the test."""
+    from missions.gallery.server import start_gallery
+
+    running = start_gallery(tmp_path / "gallery")
+    yield running
+    running.stop()

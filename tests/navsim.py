@@ -15,22 +15,9 @@ from robots.sim.backend import SimBackend, map_path
 from skills.base import Outcome, Skill, SkillContext, SkillLogger
 from skills.execution import SkillExecution
 from skills.workers import Workers
+from tests.tools import DictBoard as Board
 
 MAPS: dict[str, GridMap] = {}
-
-
-class Board:
-    def __init__(self) -> None:
-        self.values: dict[str, Any] = {}
-
-    def get(self, key: str) -> Any:
-        return self.values[key]
-
-    def set(self, key: str, value: Any) -> None:
-        self.values[key] = value
-
-    def exists(self, key: str) -> bool:
-        return key in self.values
 
 
 def grid(name: str) -> GridMap:

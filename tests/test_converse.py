@@ -26,6 +26,7 @@ from skills.chat.routing import COMMANDS, route
 from skills.converse import Converse
 from skills.execution import SkillExecution
 from skills.workers import Workers
+from tests.tools import DictBoard as Board
 
 AIML_HEAD = '<?xml version="1.0" encoding="UTF-8"?>\n<aiml version="1.0.1">\n'
 
@@ -422,20 +423,6 @@ def test_a_missing_file_is_a_problem_too(tmp_path: Path) -> None:
 
 
 # -- the converse skill -------------------------------------------------------------------------
-
-
-class Board:
-    def __init__(self) -> None:
-        self.values: dict[str, Any] = {}
-
-    def get(self, key: str) -> Any:
-        return self.values[key]
-
-    def set(self, key: str, value: Any) -> None:
-        self.values[key] = value
-
-    def exists(self, key: str) -> bool:
-        return key in self.values
 
 
 class Harness:

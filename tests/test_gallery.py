@@ -24,13 +24,6 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture
-def gallery(tmp_path: Path) -> Iterator[RunningGallery]:
-    running = start_gallery(tmp_path / "gallery")
-    yield running
-    running.stop()
-
-
-@pytest.fixture
 def jpeg(tmp_path: Path) -> bytes:
     return make_photo(tmp_path / "photo", size=(240, 320)).read_bytes()
 

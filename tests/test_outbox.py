@@ -64,13 +64,6 @@ def wait_for(condition: Callable[[], bool], timeout: float = 20.0) -> None:
 
 
 @pytest.fixture
-def gallery(tmp_path: Path) -> Iterator[RunningGallery]:
-    running = start_gallery(tmp_path / "gallery")
-    yield running
-    running.stop()
-
-
-@pytest.fixture
 def clock() -> ManualClock:
     return ManualClock()
 

@@ -12,20 +12,7 @@ from robots.clock import SimClock
 from skills.base import In, NoParams, Out, Outcome, Skill, SkillContext, SkillLogger, SkillRun
 from skills.execution import SkillExecution
 from skills.workers import Workers
-
-
-class DictBoard:
-    def __init__(self) -> None:
-        self.values: dict[str, Any] = {}
-
-    def get(self, key: str) -> Any:
-        return self.values[key]
-
-    def set(self, key: str, value: Any) -> None:
-        self.values[key] = value
-
-    def exists(self, key: str) -> bool:
-        return key in self.values
+from tests.tools import DictBoard
 
 
 def context(skill: Skill, logs: list[str] | None = None, workers: Workers | None = None) -> SkillContext:

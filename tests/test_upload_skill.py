@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 import yaml
 
-from missions.gallery.server import RunningGallery, start_gallery
+from missions.gallery.server import start_gallery
 from missions.runner import run as run_mission
 from robots.clock import SimClock
 from skills.base import Outcome, SkillContext, SkillLogger
@@ -24,20 +24,7 @@ from skills.outbox.settings import TOKEN_ENV
 from skills.upload import Upload
 from skills.workers import Workers
 from tests.test_outbox import TOKEN, make_photo, photos_in
-
-
-class Board:
-    def __init__(self) -> None:
-        self.values: dict[str, Any] = {}
-
-    def get(self, key: str) -> Any:
-        return self.values[key]
-
-    def set(self, key: str, value: Any) -> None:
-        self.values[key] = value
-
-    def exists(self, key: str) -> bool:
-        return key in self.values
+from tests.tools import DictBoard as Board
 
 
 class Harness:
@@ -74,13 +61,6 @@ class Harness:
     def close(self) -> None:
         self.workers.shutdown()
         self.uploads.close()
-
-
-@pytest.fixture
-def gallery(tmp_path: Path) -> Iterator[RunningGallery]:
-    running = start_gallery(tmp_path / "gallery")
-    yield running
-    running.stop()
 
 
 @pytest.fixture

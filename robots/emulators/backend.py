@@ -20,9 +20,8 @@ from robots.emulators.launchpad import LaunchpadEmulator
 from robots.gridmap import GridMap
 from robots.interfaces import LaserScan, Pose2D
 from robots.profile import Profile
+from robots.sim.backend import populated_world
 from robots.sim.devices import SimLaser
-from robots.sim.people import PERSON_RADIUS, Crowd
-from robots.sim.world import World
 
 
 class _LockedLaser:
@@ -50,12 +49,7 @@ class EmulatorBackend:
     ) -> None:
         self.clock = clock
         self.lock = threading.Lock()
-        self.world = World(grid, profile, start, seed)
-        self.crowd = Crowd.populate(grid, self.world.rng, people, avoid=(start.x, start.y))
-        self.world.movers = self.crowd.positions
-        self.world.mover_radius = PERSON_RADIUS
-        self.crowd.robot = lambda: (self.world.body.pose.x, self.world.body.pose.y)
-        self.crowd.robot_radius = profile.base.footprint_radius
+        self.world, self.crowd = populated_world(profile, grid, start, seed, people)
         steps = [self.crowd.step] if self.crowd.people else []
         self.emulator = LaunchpadEmulator(self.world, world_lock=self.lock, extra_steps=steps, **emulator_options)
         self.emulator.start()

@@ -39,6 +39,26 @@ def map_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
     return find_yaml(name_or_path, MAPS_DIR, known_maps(), relative_to)
 
 
+def populated_world(
+    profile: Profile,
+    grid: GridMap,
+    start: Pose2D,
+    seed: int,
+    people: int = 0,
+    gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
+) -> tuple[World, Crowd]:
+    """The robot's world and the people in it, wired together: people are laser returns and
+    obstacles, and keep clear of the robot themselves. ``gatherings``: (time, centre, size, stay)."""
+    world = World(grid, profile, start, seed)
+    crowd = Crowd.populate(grid, world.rng, people, avoid=(start.x, start.y))
+    crowd.scripted = sorted(gatherings or [])
+    world.movers = crowd.positions
+    world.mover_radius = PERSON_RADIUS
+    crowd.robot = lambda: (world.body.pose.x, world.body.pose.y)
+    crowd.robot_radius = profile.base.footprint_radius
+    return world, crowd
+
+
 class SimBackend:
     def __init__(
         self,
@@ -51,14 +71,7 @@ class SimBackend:
         gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
     ) -> None:
         self.clock = clock
-        self.world = World(grid, profile, start, seed)
-        self.crowd = Crowd.populate(grid, self.world.rng, people, avoid=(start.x, start.y))
-        self.crowd.scripted = sorted(gatherings or [])  # (time, centre, size, stay)
-        # people are laser returns and obstacles, and keep clear of the robot themselves
-        self.world.movers = self.crowd.positions
-        self.world.mover_radius = PERSON_RADIUS
-        self.crowd.robot = lambda: (self.world.body.pose.x, self.world.body.pose.y)
-        self.crowd.robot_radius = profile.base.footprint_radius
+        self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)
         self.devices: dict[str, Any] = {}
         self.not_simulated: list[str] = []
         makers = {
