@@ -31,6 +31,7 @@ BUILTIN_MODULES = (
     "skills.wander",
     "skills.approach",
     "skills.recoveries",
+    "skills.listen",
 )
 
 
