@@ -98,13 +98,13 @@ class Recognizer:
     def __init__(
         self,
         garbage: int = 1000,
-        command_mass: float = 0.5,
-        min_coverage: float = 0.6,
+        command_mass: float = 0.99,
+        min_coverage: float = 0.7,
         dither_seed: int = 0,
         options: dict[str, Any] | None = None,
     ) -> None:
-        if not 0 < command_mass < 1 or not 0 < min_coverage <= 1 or garbage < 0:
-            raise ValueError("need 0 < command_mass < 1, 0 < min_coverage <= 1, garbage >= 0")
+        if not 0 < command_mass < 0.995 or not 0 < min_coverage <= 1 or garbage < 0:
+            raise ValueError("need 0 < command_mass < 0.995, 0 < min_coverage <= 1, garbage >= 0")
         self.garbage = garbage
         self.command_mass = command_mass
         self.min_coverage = min_coverage
@@ -150,7 +150,7 @@ class Recognizer:
         words = [w for w, _ in chosen]
         logs = np.array([p for _, p in chosen], dtype=float) * math.log(10)  # ln P
         share = np.exp(logs - logs.max()) if words else np.zeros(0)
-        end = 0.05  # P(</s>)
+        end = 0.005  # P(</s>)
         rest = (1.0 - end - self.command_mass) / share.sum() if words else 0.0
         lines = ["\\data\\", f"ngram 1={len(words) + len(COMMANDS) + 2}", "", "\\1-grams:", "-99 <s>"]
         lines.append(f"{math.log10(end):.5f} </s>")
