@@ -36,6 +36,7 @@ BUILTIN_MODULES = (
     "skills.converse",
     "skills.speak",
     "skills.upload",
+    "skills.listen",
 )
 
 

@@ -25,6 +25,7 @@ from robots.sim.devices import (
     SimSpeaker,
 )
 from robots.sim.people import PERSON_RADIUS, Crowd
+from robots.sim.voices import Voices
 from robots.sim.world import World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
@@ -93,10 +94,15 @@ class SimBackend:
             else:
                 self.not_simulated.append(name)  # an interface the simulator has no device for
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
+        # people near the robot speak into its microphone (robots/sim/voices.py)
+        microphone = self.devices.get("microphone")
+        self.voices = Voices.for_world(self.world, self.crowd, microphone) if microphone is not None else None
 
     def step(self) -> None:
         self.world.step(self.clock.period)
         self.crowd.step(self.clock.period)
+        if self.voices is not None:
+            self.voices.step(self.clock.now())
         pose = self.world.body.pose
         self.trajectory.append((self.world.time, pose.x, pose.y, pose.theta))
 
@@ -117,6 +123,7 @@ class SimBackend:
             "final_pose": [round(final.x, 4), round(final.y, 4), round(final.theta, 4)],
             "bumps": self.world.body.bumps,
             "people": len(self.crowd.people),
+            "utterances": len(self.voices.spoken) if self.voices is not None else 0,
             "battery_percent": round(self.world.battery_percent, 3),
             "not_simulated": self.not_simulated,
         }
