@@ -227,7 +227,7 @@ def tune(quick: bool = False) -> list[dict[str, Any]]:
     made = trials(TUNE_VOICES[:2] if quick else TUNE_VOICES, TUNE_PHRASES, speeds=(150,), pitches=(50,))
     conditions = (("white", 10.0), ("pink", 10.0), ("clean", None))
     results = []
-    for garbage, mass, coverage in itertools.product((300, 1000, 2000), (0.3, 0.6, 0.9), (0.5, 0.7)):
+    for garbage, mass, coverage in itertools.product((300, 1000), (0.6, 0.9, 0.99), (0.7, 0.9)):
         measured = evaluate(Recognizer(garbage, mass, coverage), made, conditions)
         row = {
             "garbage": garbage,
