@@ -24,23 +24,10 @@ from skills.listen import Listen
 from skills.registry import Registry
 from skills.speech.wav import read_wav
 from skills.workers import Workers
+from tests.tools import DictBoard
 
 DATA = Path(__file__).parent / "data" / "speech"
 MUSEUM = load("robots/maps/museum.yaml")
-
-
-class Board:
-    def __init__(self) -> None:
-        self.values: dict[str, Any] = {}
-
-    def get(self, key: str) -> Any:
-        return self.values[key]
-
-    def set(self, key: str, value: Any) -> None:
-        self.values[key] = value
-
-    def exists(self, key: str) -> bool:
-        return key in self.values
 
 
 class Rig:
@@ -72,7 +59,7 @@ class Rig:
             clock=self.clock,
             params=skill.params,
             logger=SkillLogger("listen", sink=lambda node, level, message: self.logs.append(message)),
-            blackboard=Board(),
+            blackboard=DictBoard(),
             workers=self.workers,
             interfaces=self.sim.devices if interfaces is None else interfaces,
             rng=random.Random(0),
