@@ -239,11 +239,9 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
             out.at(where, "a gathering's place is a name or [x, y]")
         elif not grid.is_free(gathering.at[0], gathering.at[1]):
             out.at(where, f"({gathering.at[0]:g}, {gathering.at[1]:g}) is not free floor on the map")
-    if sum(g.size for g in mission.gatherings) > mission.people:
-        out.at(
-            ("gatherings",),
-            f"the gatherings need {sum(g.size for g in mission.gatherings)} people; `people:` is {mission.people}",
-        )
+    needed = sum(g.size for g in mission.gatherings)
+    if needed > mission.people:
+        out.at(("gatherings",), f"the gatherings need {needed} people; `people:` is {mission.people}")
     start = mission.start
     if start is None:
         if not grid.places:

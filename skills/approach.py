@@ -13,7 +13,7 @@ import numpy as np
 
 from skills.base import In, Outcome, Skill, SkillContext, SkillRun
 from skills.nav.navigator import OUTCOMES, NavParams, drive_to
-from skills.navigate import CANCEL, NAV_OUTPUTS, cancel_condition, nav_outcome, nav_stack
+from skills.navigate import CANCEL, NAV_OUTPUTS, TIMEOUT, cancel_condition, nav_outcome, nav_stack
 
 
 class Approach(Skill):
@@ -23,7 +23,7 @@ class Approach(Skill):
         "target": In(list[float], doc="[x, y] in the map frame"),
         "standoff": In(float, default=1.2, doc="m between the robot's centre and the target"),
         "tolerance": In(float, default=0.15, doc="m"),
-        "timeout": In(float, default=0.0, doc="s of mission time; 0: from the path's length"),
+        "timeout": TIMEOUT,
         "cancel": CANCEL,
     }
     outputs = NAV_OUTPUTS

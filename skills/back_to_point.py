@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from skills.base import In, SkillContext, SkillRun
-from skills.navigate import CANCEL, GOAL, NAV_OUTPUTS, Navigate
+from skills.navigate import CANCEL, GOAL, NAV_OUTPUTS, TIMEOUT, Navigate
 
 
 class BackToPoint(Navigate):
@@ -15,7 +15,7 @@ class BackToPoint(Navigate):
         "point": In(GOAL, doc="a place of the map or [x, y(, theta)]: bind it to `{last_checkpoint}`"),
         "tolerance": In(float, default=0.1, doc="m"),
         "heading_tolerance": In(float, default=0.1, doc="rad"),
-        "timeout": In(float, default=0.0, doc="s of mission time; 0: from the path's length"),
+        "timeout": TIMEOUT,
         "cancel": CANCEL,
     }
     outputs = NAV_OUTPUTS

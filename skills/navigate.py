@@ -52,6 +52,7 @@ NAV_OUTPUTS = {
     "result": Out(str, doc="the outcome's name, for a tree to branch on (e.g. to recover when blocked)"),
 }
 CANCEL = In(str, default="false", doc="a condition that cancels the drive once true", expression=True)
+TIMEOUT = In(float, default=0.0, doc="s of mission time; 0: from the path's length")
 
 
 class Navigate(Skill):
@@ -61,7 +62,7 @@ class Navigate(Skill):
         "goal": In(GOAL, doc="a place of the map (e.g. `exhibit_a`) or [x, y] / [x, y, theta] in metres and rad"),
         "tolerance": In(float, default=0.05, doc="m from the goal's position that counts as there"),
         "heading_tolerance": In(float, default=0.05, doc="rad from the goal's heading (when it has one)"),
-        "timeout": In(float, default=0.0, doc="s of mission time; 0: from the path's length"),
+        "timeout": TIMEOUT,
         "cancel": CANCEL,
     }
     outputs = NAV_OUTPUTS

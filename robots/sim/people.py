@@ -149,15 +149,8 @@ class Crowd:
         if spots is None:
             return
         order = self.rng.permutation(len(free))
-        members = [free[int(i)] for i in order[:size]]
         # a group that cannot all arrive (someone stuck behind an obstacle) breaks up after 90 s
-        group = Group(self._new_id(), centre, [m.id for m in members], {}, leave_at=self.time + 90.0)
-        for member, spot in zip(members, spots, strict=True):
-            member.group = group.id
-            member.goal = spot
-            member.pause_until = 0.0
-            group.spots[member.id] = spot
-        self.groups.append(group)
+        self._assemble(centre, [free[int(i)] for i in order[:size]], spots, leave_at=self.time + 90.0, stay=None)
 
     def gather(self, centre: tuple[float, float], size: int, stay: float = 120.0) -> bool:
         """The ``size`` nearest free people walk to ``centre`` and stay ``stay`` s once all are
@@ -168,15 +161,24 @@ class Crowd:
         spots = self._spots_around(centre, size) if len(free) >= size else None
         if spots is None:
             return False
-        group = Group(self._new_id(), centre, [m.id for m in free[:size]], {}, leave_at=math.inf)
-        group.stay = stay
-        for member, spot in zip(free[:size], spots, strict=True):
+        self._assemble(centre, free[:size], spots, leave_at=math.inf, stay=stay)
+        return True
+
+    def _assemble(
+        self,
+        centre: tuple[float, float],
+        members: list[Person],
+        spots: list[tuple[float, float]],
+        leave_at: float,
+        stay: float | None,
+    ) -> None:
+        group = Group(self._new_id(), centre, [m.id for m in members], {}, leave_at=leave_at, stay=stay)
+        for member, spot in zip(members, spots, strict=True):
             member.group = group.id
             member.goal = spot
             member.pause_until = 0.0
             group.spots[member.id] = spot
         self.groups.append(group)
-        return True
 
     def _spots_around(self, centre: tuple[float, float], size: int) -> list[tuple[float, float]] | None:
         start = float(self.rng.uniform(0, 2 * math.pi))

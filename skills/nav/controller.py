@@ -96,7 +96,6 @@ class PathFollower:
             return Command(0.0, _clamp(2.0 * error, p.max_angular, minimum=0.2), "aligning")
         tx, ty = self._lookahead_point(pose)
         dx, dy = tx - pose.x, ty - pose.y
-        c, s = math.cos(pose.theta), math.sin(pose.theta)
         ahead, left = c * dx + s * dy, -s * dx + c * dy  # the target in the robot's frame
         bearing = math.atan2(left, ahead)
         if abs(bearing) > p.rotate_threshold:
