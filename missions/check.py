@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import contextlib
 import difflib
+import types
+import typing
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -392,6 +394,10 @@ def _compatible(declared: Any, port: Any, mode: str) -> bool:
         return True
     if source is int and target is float:
         return True
+    if typing.get_origin(source) in (typing.Union, types.UnionType):  # every member must fit
+        return all(_compatible(member, target, "read") for member in typing.get_args(source))
+    if typing.get_origin(target) in (typing.Union, types.UnionType):  # one member must take it
+        return any(_compatible(source, member, "read") for member in typing.get_args(target))
     return getattr(source, "__origin__", source) is target  # list[float] into a plain list
 
 

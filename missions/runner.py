@@ -36,6 +36,7 @@ from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
 from robots.profile import Profile, load_profile, profile_path
 from robots.sim.backend import SimBackend, known_maps, map_path
+from skills.files import RunFiles
 from skills.registry import Registry
 
 if TYPE_CHECKING:  # the serial backends load pyserial and ptys only when a run asks for them
@@ -145,7 +146,7 @@ def run(
             seed=seed,
             trace=Trace(clock, sink, keep=False),
             registry=registry,
-            interfaces={**devices, "uploads": uploads},
+            interfaces={**devices, "uploads": uploads, "files": RunFiles(folder)},
         )
         try:
             root = build(engine, checked, blackboard)
@@ -252,7 +253,16 @@ def _simulator(
             (g.time, tuple(grid.places[g.at][:2]) if isinstance(g.at, str) else (g.at[0], g.at[1]), g.size, g.stay)
             for g in mission.gatherings
         ]
-        return SimBackend(profile, grid, Pose2D(x, y, theta), seed, clock, people=mission.people, gatherings=gatherings)
+        return SimBackend(
+            profile,
+            grid,
+            Pose2D(x, y, theta),
+            seed,
+            clock,
+            people=mission.people,
+            gatherings=gatherings,
+            voices=mission.voices.model_dump(),
+        )
     except (ValueError, ConnectionError) as exc:
         raise RunError(str(exc)) from None
 

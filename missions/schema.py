@@ -30,6 +30,19 @@ class Gathering(BaseModel):
     stay: float = Field(default=120.0, gt=0, description="seconds they stay once all are there")
 
 
+class VoiceSettings(BaseModel):
+    """How the simulator's people speak to the robot (robots/sim/voices.py)."""
+
+    model_config = ConfigDict(extra="forbid")
+    near: float = Field(default=2.5, gt=0, description="m: people within this of the robot speak to it")
+    every: float = Field(default=12.0, gt=0, description="s: mean wait between utterances")
+    command_share: float = Field(default=0.6, ge=0, le=1, description="share of utterances that are commands")
+    pause: float = Field(default=1.0, ge=0, description="s of quiet at least between two utterances")
+    command_weights: dict[str, float] = Field(
+        default_factory=dict, description="how often each command is said, relatively (default: all alike)"
+    )
+
+
 class KeySpec(BaseModel):
     """A declared blackboard key: its type (checked on every write) and an optional default."""
 
@@ -68,6 +81,9 @@ class Mission(BaseModel):
     people: int = Field(default=0, ge=0, le=500, description="simulated people walking on the map (simulation only)")
     gatherings: list[Gathering] = Field(
         default_factory=list, description="groups the simulated people form on cue (scenario tests, demos)"
+    )
+    voices: VoiceSettings = Field(
+        default_factory=VoiceSettings, description="how the simulated people speak to the robot"
     )
     seed: int = 0
     rate_hz: float = Field(default=10.0, gt=0, le=10_000, description="ticks per second")

@@ -97,6 +97,7 @@ def museum() -> GridMap:
         ("gallery_door", 20.5, 10.0, 0.0),
         ("gallery_model", 26.0, 13.5, -1.57),
         ("gallery_corner", 28.0, 2.0, 3.14),
+        ("dock", 2.0, 1.5, 3.14),
     ):
         c.place(name, x, y, yaw)
     return c.grid()

@@ -37,6 +37,9 @@ BUILTIN_MODULES = (
     "skills.speak",
     "skills.upload",
     "skills.listen",
+    "skills.photo",
+    "skills.display",
+    "skills.watch_battery",
 )
 
 

@@ -4,7 +4,8 @@ A patrol does not end because one checkpoint is out of reach (a group of visitor
 it): it logs the miss and goes on to the next. It fails only when a whole round reached
 nothing. The checkpoint it last reached is written to ``checkpoint_key`` as it goes, so that
 back_to_point can return there after an interaction; a patrol started again after being
-preempted resumes after that checkpoint.
+preempted resumes after that checkpoint. With ``stops: 1`` it goes on to the next checkpoint and
+returns: the paper's Wandering, one leg at a time, with Crowd Detection at each checkpoint.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ class Wander(Skill):
         "order": In(str, default="sequence", doc="`sequence` or `random`"),
         "pause": In(float, default=3.0, doc="s to stay at each checkpoint"),
         "rounds": In(int, default=0, doc="how many times round; 0: until stopped"),
+        "stops": In(int, default=0, doc="return after reaching this many checkpoints (0: whole rounds)"),
         "checkpoint_key": In(
             str, default="last_checkpoint", doc="key to write each reached place to", names_key="write"
         ),
@@ -43,6 +45,7 @@ class Wander(Skill):
         order: str,
         pause: float,
         rounds: int,
+        stops: int,
         checkpoint_key: str,
         cancel: str,
     ) -> SkillRun:
@@ -56,8 +59,8 @@ class Wander(Skill):
         if unknown:
             known = ", ".join(sorted(stack.places)) or "none"
             return Outcome.failure(f"unknown checkpoint(s) {', '.join(unknown)} (places: {known})")
-        if pause < 0 or rounds < 0:
-            return Outcome.failure("pause and rounds must not be negative")
+        if pause < 0 or rounds < 0 or stops < 0:
+            return Outcome.failure("pause, rounds and stops must not be negative")
         drive = ctx.interface("drive")
         cancelled = cancel_condition(ctx, cancel)
         visited, missed = 0, []
@@ -98,6 +101,8 @@ class Wander(Skill):
                     if cancelled is not None and cancelled():
                         return Outcome("cancelled", "cancelled while pausing", {"visited": visited, "missed": missed})
                     yield
+                if stops and visited >= stops:
+                    return Outcome.success(f"{visited} checkpoint(s)", visited=visited, missed=missed)
             if not reached:
                 return Outcome.failure(
                     f"round {round_no + 1} reached none of {len(names)} checkpoint(s)",

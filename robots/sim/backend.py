@@ -70,6 +70,7 @@ class SimBackend:
         clock: Clock,
         people: int = 0,
         gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
+        voices: dict[str, float] | None = None,
     ) -> None:
         self.clock = clock
         self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)
@@ -96,7 +97,9 @@ class SimBackend:
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
         # people near the robot speak into its microphone (robots/sim/voices.py)
         microphone = self.devices.get("microphone")
-        self.voices = Voices.for_world(self.world, self.crowd, microphone) if microphone is not None else None
+        self.voices = (
+            Voices.for_world(self.world, self.crowd, microphone, **(voices or {})) if microphone is not None else None
+        )
 
     def step(self) -> None:
         self.world.step(self.clock.period)

@@ -117,7 +117,8 @@ class Crowd:
             self.next_group_at = self.time + float(self.rng.uniform(20.0, 60.0))
         for cue in [c for c in self.scripted if self.time >= c[0]]:
             self.scripted.remove(cue)
-            self.gather(*cue[1:])
+            if not self.gather(*cue[1:]):  # too few people free yet (in groups of their own): retry
+                self.scripted.append((self.time + 1.0, *cue[1:]))
         for group in self.groups:
             if not group.arrived and all(self._at(self._person(m), group.spots[m]) for m in group.members):
                 group.arrived = True

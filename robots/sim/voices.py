@@ -5,7 +5,7 @@ Utterances are WAV clips made with espeak-ng (commands and chat phrases, in seve
 
 - at **scripted** moments (``say``), whoever is around, for tests and demos;
 - at **random** moments when someone stands within ``near`` metres of the robot: after each
-  utterance (or after a quiet check) the next is due an exponential wait of mean ``every``
+  utterance (or after a quiet check) the next is due ``pause`` plus an exponential wait of mean ``every``
   seconds later, and the clip is drawn at random, commands ``command_share`` of the time.
 
 The randomness comes from the world's ``voices`` generator, so the same seed gives the same
@@ -21,6 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -84,18 +85,27 @@ class Voices:
     near: float = 2.5
     every: float = 12.0
     command_share: float = 0.6
+    pause: float = 1.0  # s of quiet at least between two utterances: people take turns
+    command_weights: dict[str, float] = field(default_factory=dict)  # command -> weight (default 1 each)
     library: tuple[Clip, ...] = field(default_factory=clips)
     spoken: list[Spoken] = field(default_factory=list)
     _next: float = 0.0
     _busy_until: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.near <= 0 or self.every <= 0 or not 0 <= self.command_share <= 1:
-            raise ValueError("voices need near > 0, every > 0 and 0 <= command_share <= 1")
+        if self.near <= 0 or self.every <= 0 or self.pause < 0 or not 0 <= self.command_share <= 1:
+            raise ValueError("voices need near > 0, every > 0, pause >= 0 and 0 <= command_share <= 1")
+        commands = {c.command for c in self.library if c.command}
+        unknown = sorted(set(self.command_weights) - commands)
+        if unknown or any(w < 0 for w in self.command_weights.values()):
+            raise ValueError(
+                f"command weights are non-negative numbers for {', '.join(sorted(commands))}; "
+                f"got {self.command_weights}"
+            )
         self._next = float(self.rng.exponential(self.every))
 
     @classmethod
-    def for_world(cls, world: World, crowd: Crowd, microphone: SimMicrophone, **options: float) -> Voices:
+    def for_world(cls, world: World, crowd: Crowd, microphone: SimMicrophone, **options: Any) -> Voices:
         pose = world.body
 
         def robot() -> tuple[float, float]:
@@ -125,10 +135,26 @@ class Voices:
             return
         commands = [c for c in self.library if c.command]
         chat = [c for c in self.library if not c.command]
-        pool = commands if (commands and (not chat or self.rng.random() < self.command_share)) else chat
-        chosen = pool[int(self.rng.integers(len(pool)))]
+        if commands and (not chat or self.rng.random() < self.command_share):
+            chosen = self._weighted(commands)
+        else:
+            chosen = chat[int(self.rng.integers(len(chat)))]
         self.say(chosen, now, speaker)
-        self._next = now + chosen.duration + float(self.rng.exponential(self.every))
+        self._next = now + chosen.duration + self.pause + float(self.rng.exponential(self.every))
+
+    def _weighted(self, commands: list[Clip]) -> Clip:
+        """A command clip: each command as likely as its weight says, its clips equally likely."""
+        if not self.command_weights:
+            return commands[int(self.rng.integers(len(commands)))]
+        per_command: dict[str, int] = {}
+        for clip in commands:
+            per_command[clip.command or ""] = per_command.get(clip.command or "", 0) + 1
+        weights = np.array(
+            [self.command_weights.get(c.command or "", 0.0) / per_command[c.command or ""] for c in commands]
+        )
+        if weights.sum() <= 0:
+            return commands[int(self.rng.integers(len(commands)))]
+        return commands[int(self.rng.choice(len(commands), p=weights / weights.sum()))]
 
     def _nearest(self, now: float) -> int | None:
         rx, ry = self.robot()
