@@ -3,4 +3,4 @@
 from pathlib import Path
 
 MISSIONS_DIR = Path(__file__).resolve().parent
-DEFAULT_MISSION = MISSIONS_DIR / "hello.yaml"
+DEFAULT_MISSION = MISSIONS_DIR / "peoplebot_entertainer.yaml"

@@ -87,7 +87,7 @@ def _live_progress(live: Live):
 
 @app.command()
 def run(
-    mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the hello mission)"),
+    mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the PeopleBot entertainer)"),
     backend: str = typer.Option(
         "sim",
         help="sim (the built-in simulator), emulator (the simulated robot through its emulated board) or hardware",

@@ -1,15 +1,22 @@
 """report.html: one self-contained page about a run.
 
 Summary table, a timeline of states and skills (drawn as inline SVG, plus the table behind it),
-the transcript when anyone spoke, and the pictures of the mission's machine or tree. Everything
+the transcript when anyone spoke, the photos taken (thumbnails, with their metadata and upload
+state) and the layouts the display showed, the map with the trajectory, and the pictures of the
+mission's machine or tree. Everything
 is inline (no scripts, no external files), so the page opens anywhere, offline, and can be
 attached to a bug report.
 """
 
 from __future__ import annotations
 
+import base64
+import contextlib
+import hashlib
 import html
 import json
+import sqlite3
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,8 +26,10 @@ from behaviors.render import GraphvizMissing, describe, graphviz, to_dot, to_tex
 from missions.check import Checked, build_root, root_spec_path
 from missions.transcript import read_transcript
 from robots.clock import SimClock
+from skills.display import LAYOUTS
 
 MAX_ROWS = 2000
+MAX_PHOTOS = 60
 MAX_LANES = 60
 
 
@@ -162,7 +171,6 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     mission = checked.mission
     if not trajectory.exists() or mission is None or mission.world is None:
         return ""
-    import base64
     import io
 
     import matplotlib
@@ -218,6 +226,86 @@ def transcript_section(folder: Path) -> str:
     )
 
 
+def _upload_states(folder: Path) -> dict[str, str]:
+    """Each recorded photo's state in the run's outbox (by SHA-256), read without changing it."""
+    database = folder / "outbox" / "outbox.sqlite"
+    if not database.is_file():
+        return {}
+    try:
+        with contextlib.closing(sqlite3.connect(f"file:{database}?mode=ro", uri=True)) as db:
+            return dict(db.execute("SELECT hash, state FROM photos").fetchall())
+    except sqlite3.Error:
+        return {}
+
+
+def photos_section(folder: Path, subfolder: str = "photos", width: int = 200) -> str:
+    """The photos the run took: a thumbnail each, when and where, and whether the gallery has it."""
+    photos = sorted((folder / subfolder).glob("*.jpg"))
+    if not photos:
+        return ""
+    import cv2  # loads only for a run that took photos
+    import numpy as np
+
+    states = _upload_states(folder)
+    e = html.escape
+    cells = []
+    for photo in photos[:MAX_PHOTOS]:
+        data = photo.read_bytes()
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        if image is None:
+            cells.append(f"<figure><figcaption>{e(photo.name)}: not a readable JPEG</figcaption></figure>")
+            continue
+        small = cv2.resize(image, (width, max(1, round(image.shape[0] * width / image.shape[1]))))
+        thumbnail = base64.b64encode(cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, 80])[1].tobytes()).decode()
+        try:
+            meta = json.loads(photo.with_suffix(".json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            meta = {}
+        state = states.get(hashlib.sha256(data).hexdigest(), "not queued")
+        pose = meta.get("pose")
+        where = f" at ({pose[0]:.1f}, {pose[1]:.1f})" if isinstance(pose, list) and len(pose) >= 2 else ""
+        caption = f"{photo.name}: t {meta.get('t', '?')} s{where}, crowd {meta.get('crowd_id', '?')}; upload: {state}"
+        cells.append(
+            f'<figure><img alt="{e(photo.name)}" src="data:image/jpeg;base64,{thumbnail}">'
+            f"<figcaption>{e(caption)}</figcaption></figure>"
+        )
+    more = f"<p>{len(photos) - MAX_PHOTOS} more photos are in {subfolder}/.</p>" if len(photos) > MAX_PHOTOS else ""
+    uploaded = sum(1 for p in photos if states.get(hashlib.sha256(p.read_bytes()).hexdigest()) == "uploaded")
+    return (
+        f'<h2 id="photos">Photos</h2>\n<p>{len(photos)} taken, {uploaded} uploaded to the gallery.</p>'
+        f'<div class="photos">{"".join(cells)}</div>{more}'
+    )
+
+
+def layouts(trace_path: Path, key: str = "layout") -> list[tuple[float, str]]:
+    """When each layout was asked of the display: the writes of ``key`` (the display skill's)."""
+    shown: list[tuple[float, str]] = []
+    with trace_path.open(encoding="utf-8") as trace:
+        for raw in trace:
+            if '"bb_write"' not in raw:
+                continue
+            event = json.loads(raw)
+            if event["ev"] == "bb_write" and event["key"] == key and event["new"] and event["new"] != event["old"]:
+                shown.append((event["t"], str(event["new"])))
+    return shown
+
+
+def layouts_section(folder: Path) -> str:
+    shown = layouts(folder / "trace.jsonl")
+    if not shown:
+        return ""
+    e = html.escape
+    rows = "".join(
+        f"<tr><td>{t:g}</td><td>{e(name)}</td><td>{e(LAYOUTS.get(name, 'not a layout: not shown'))}</td></tr>"
+        for t, name in shown[:MAX_ROWS]
+    )
+    counts = ", ".join(f"{name} ×{n}" for name, n in sorted(Counter(name for _, name in shown).items()))
+    return (
+        f'<h2 id="layouts">Layouts</h2>\n<p>What the display showed, and when ({e(counts)}).</p>'
+        f'<table class="layouts"><tr><th>from t s</th><th>layout</th><th>meaning</th></tr>{rows}</table>'
+    )
+
+
 def pictures(checked: Checked) -> str:
     mission = checked.mission
     assert mission is not None
@@ -246,6 +334,8 @@ th { background: #f5f5f5; }
 .picture svg { max-width: 100%; height: auto; }
 .outcome { font-weight: bold; }
 .transcript tr.robot td { background: #eef6ff; }
+.photos { display: flex; flex-wrap: wrap; gap: 10px; }
+.photos figure { margin: 0; width: 200px; font-size: 12px; }
 pre { background: #f8f8f8; padding: 1em; overflow-x: auto; }
 """
 
@@ -289,6 +379,8 @@ def write_report(folder: Path, checked: Checked, summary: dict[str, Any]) -> Pat
 <table class="timeline-table"><tr><th>kind</th><th>where</th><th>name</th><th>start s</th><th>end s</th>
 <th>outcome</th><th>reason</th></tr>{timeline_rows}</table>{more}
 {transcript_section(folder)}
+{photos_section(folder)}
+{layouts_section(folder)}
 {trajectory_map(folder, checked)}
 <h2 id="pictures">Mission</h2>
 {pictures(checked)}

@@ -350,6 +350,12 @@ def _outcome(
     outcome = getattr(root, "outcome", None)
     if outcome is not None:
         return outcome.name, outcome.reason
+    if root.status in (Status.SUCCESS, Status.FAILURE):
+        # a root tree that ended with the machine it runs beside its helpers (a display, a
+        # battery watch) reports that machine's outcome: `docked` says more than `success`
+        ended = [c.outcome for c in root.children if isinstance(c, MachineBehaviour) and c.outcome is not None]
+        if len(ended) == 1:
+            return ended[0].name, ended[0].reason
     if root.status is Status.SUCCESS:
         return "success", ""
     if root.status is Status.FAILURE:

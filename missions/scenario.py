@@ -16,12 +16,14 @@ A scenario file (YAML, usually `missions/scenarios/<mission>/<name>.yaml`)::
     blackboard: {battery_pct: 15}      # overrides of the mission's initial values
     events:
       - {t: 12, set: {estop: true}}
+      - {t: 40, gallery: down}       # the run's own gallery goes down (and `up` brings it back)
     expect:
       outcome: stopped
       states: [greeting, working/patrol, stopped]       # exact
       states_in_order: [greeting, stopped]              # or an ordered subsequence
       calls: [{skill: log, inputs: {message: "hello from botstage"}}]
       blackboard: {greeted: true}
+      counters: {photos_uploaded: 2}                    # summary.json's, at the end
       within: [{from: {state: working/patrol}, to: {state: stopped}, seconds: 15}]
       never: ["estop and greeted == false"]
 
@@ -37,7 +39,7 @@ import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -45,6 +47,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from behaviors.blackboard import BlackboardError
 from behaviors.builder import did_you_mean
 from behaviors.engine import Engine
+from missions.gallery.service import set_gallery
 from missions.loader import Loaded, Location, Problem, load
 from missions.runner import MissionInvalid, RunError, StopRun, run
 from skills.base import Outcome, Skill, SkillContext, SkillRun, type_name
@@ -86,7 +89,10 @@ class Rule(BaseModel):
 class Event(BaseModel):
     model_config = ConfigDict(extra="forbid")
     t: float = Field(ge=0, description="sim seconds")
-    set: dict[str, Any]
+    set: dict[str, Any] = Field(default_factory=dict)
+    gallery: Literal["down", "up"] | None = Field(
+        default=None, description="take the run's own gallery down, or bring it back on the same port"
+    )
 
 
 class Span(BaseModel):
@@ -110,6 +116,7 @@ class Expect(BaseModel):
     states_in_order: list[str] | None = None
     calls: list[CallExpectation] = Field(default_factory=list)
     blackboard: dict[str, Any] = Field(default_factory=dict)
+    counters: dict[str, Any] = Field(default_factory=dict, description="summary.json counters at the end")
     within: list[Span] = Field(default_factory=list)
     never: list[str] = Field(default_factory=list)
 
@@ -356,8 +363,11 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
     def before_tick(engine: Engine) -> None:
         now = engine.clock.now()
         while pending and pending[0].t <= now + 1e-9:
-            for key, value in pending.pop(0).set.items():
+            event = pending.pop(0)
+            for key, value in event.set.items():
                 engine.blackboard.set(key, value, writer="scenario")
+            if event.gallery is not None:
+                set_gallery(engine.interfaces["uploads"], up=event.gallery == "up")
         for condition in never:
             try:
                 held = condition.test(engine.blackboard.get)
@@ -420,6 +430,11 @@ def _judge(
             yield f"blackboard: {key!r} was never written (expected {value!r})"
         elif blackboard[key] != value:
             yield f"blackboard: {key!r} expected {value!r}, got {blackboard[key]!r}"
+    for key, value in expect.counters.items():
+        if key not in summary["counters"]:
+            yield f"counters: {key!r} is not a counter of the mission (its counters: {sorted(summary['counters'])})"
+        elif summary["counters"][key] != value:
+            yield f"counters: {key!r} expected {value!r}, got {summary['counters'][key]!r}"
     for span in expect.within:
         start = next((e for e in events if _matches(span.from_, e)), None)
         if start is None:

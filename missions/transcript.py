@@ -2,9 +2,11 @@
 
 Skills say what was spoken through their outputs, so it is in the trace like every other
 result and survives mocking: an output named ``said`` is the robot speaking (``speak``), one
-named ``heard`` is a visitor (what ``converse`` answered or routed). Each becomes one line at
-the mission time its skill run started (when the robot began to talk, when the visitor's words
-were taken up), in the order of the trace.
+named ``heard`` is a visitor (what ``listen`` recognised, what ``converse`` answered or routed).
+The robot's lines are at the mission time its skill run started (when it began to talk), the
+visitors' at the time the skill ended (when their words were recognised or answered), in the
+order of the trace. Words taken up by two skills in a row (listen hears "whatsup", converse
+answers it) are one line.
 """
 
 from __future__ import annotations
@@ -37,13 +39,18 @@ def transcript(trace_path: Path) -> list[Utterance]:
                 started[event["node"]] = event["t"]
             elif kind == "skill_outcome":
                 outputs = event["outputs"] or {}
-                t = started.pop(event["node"], event["t"])
+                began = started.pop(event["node"], event["t"])
                 for port, who in ROLES.items():
                     text = outputs.get(port)
                     if isinstance(text, str) and text.strip():
+                        t = began if who == "robot" else event["t"]
                         lines.append(Utterance(t, who, text, event["node"], event["skill"]))
     lines.sort(key=lambda u: u.t)  # stable: same-time lines keep the trace's order
-    return lines
+    return [u for i, u in enumerate(lines) if not (i and _taken_up_again(lines[i - 1], u))]
+
+
+def _taken_up_again(previous: Utterance, line: Utterance) -> bool:
+    return line.who == previous.who == "visitor" and line.text.lower() == previous.text.lower()
 
 
 def write_transcript(folder: Path) -> Path | None:

@@ -47,6 +47,7 @@ class Listen(Skill):
         "command": Out(str, doc="the command heard, upper case (empty in free mode when none was said)"),
         "text": Out(str, doc="what was recognised, lower case"),
         "confidence": Out(float, doc="0-1: how sure the recogniser is (command mode: see recognizer.py)"),
+        "heard": Out(str, doc="what was accepted, for the run's transcript ('' when nothing was)"),
     }
     outcomes = ("heard", "silence", "timeout")
     success_outcomes = ("heard",)
@@ -88,7 +89,7 @@ class Listen(Skill):
                     return Outcome(
                         "heard",
                         f"heard {result.command or result.text!r} ({result.confidence:.2f})",
-                        result.outputs(),
+                        {**result.outputs(), "heard": result.text},
                     )
                 rejected.append(result)
                 ctx.logger.info(f"not accepted: {result.reason}")
@@ -98,7 +99,7 @@ class Listen(Skill):
 
     @staticmethod
     def _nothing(heard: bool, rejected: list[Recognition], timeout: float) -> Outcome:
-        empty: dict[str, Any] = {"command": "", "text": "", "confidence": 0.0}
+        empty: dict[str, Any] = {"command": "", "text": "", "confidence": 0.0, "heard": ""}
         if not heard:
             return Outcome("silence", f"no speech in {timeout:g} s", empty)
         if not rejected:
@@ -107,5 +108,5 @@ class Listen(Skill):
         return Outcome(
             "timeout",
             f"{len(rejected)} utterance(s) in {timeout:g} s, none accepted (best: {best.reason})",
-            {"command": "", "text": best.text, "confidence": best.confidence},
+            {"command": "", "text": best.text, "confidence": best.confidence, "heard": ""},
         )

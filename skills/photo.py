@@ -77,7 +77,7 @@ class Photo(Skill):
         "caption": In(str, default="", doc="a line shown beside the photo in the gallery"),
     }
     outputs = {
-        "photo": Out(str, doc="path of the JPEG file"),
+        "photo": Out(str, doc="path of the JPEG file, relative to the run folder (`upload` takes it as it is)"),
         "metadata": Out(dict[str, Any], doc="time, pose, crowd id and size: hand it to `upload` with the photo"),
     }
     Params = PhotoParams
@@ -117,4 +117,5 @@ class Photo(Skill):
             return Outcome.failure(str(error))
         where = "" if metadata["pose"] is None else " at ({:.2f}, {:.2f})".format(*metadata["pose"][:2])
         ctx.logger.info(f"took {jpeg.name} ({size / 1024:.0f} KiB){where}")
-        return Outcome.success(photo=str(jpeg), metadata=metadata)
+        # relative: the trace of a run is the same wherever its folder is
+        return Outcome.success(photo=str(jpeg.relative_to(files.folder)), metadata=metadata)

@@ -14,6 +14,7 @@ interface, so every node shares it.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
@@ -26,8 +27,12 @@ class UploadParams(OutboxSettings):
     """Where and how the run's outbox uploads (shared by every node with the same settings)."""
 
 
-def _open_and_record(uploads: Any, settings: OutboxSettings, photo: str, metadata: dict[str, Any]) -> tuple[Any, Any]:
+def _open_and_record(
+    uploads: Any, settings: OutboxSettings, photo: str, metadata: dict[str, Any], run_folder: Path | None
+) -> tuple[Any, Any]:
     """Blocking, in the worker pool: open the outbox (the first time), copy the photo in, fsync."""
+    if run_folder is not None and not Path(photo).is_absolute() and (run_folder / photo).is_file():
+        photo = str(run_folder / photo)  # what `photo` took in this run
     outbox = uploads.outbox(settings)
     return outbox, outbox.record(photo, metadata)
 
@@ -36,7 +41,7 @@ class Upload(Skill):
     name = "upload"
     description = "Queue a photo for the gallery in a durable outbox (`queued`); with `wait`, until it is `uploaded`."
     inputs = {
-        "photo": In(str, doc="path of a JPEG or PNG file"),
+        "photo": In(str, doc="path of a JPEG or PNG file (a relative one is looked for in the run folder first)"),
         "metadata": In(dict[str, Any], default={}, doc="JSON values shown beside the photo in the gallery"),
         "wait": In(bool, default=False, doc="run until the gallery has it (false: return once it is queued)"),
         "timeout": In(float, default=60.0, doc="with wait: s of mission time before giving up waiting"),
@@ -53,8 +58,10 @@ class Upload(Skill):
         if wait and timeout < 0:
             return Outcome.failure(f"timeout must not be negative, got {timeout}")
         uploads = ctx.interface("uploads")
+        files = ctx.interfaces.get("files")
+        run_folder = files.folder if files is not None else None
         try:
-            outbox, item = yield ctx.submit(_open_and_record, uploads, self.params, photo, metadata)
+            outbox, item = yield ctx.submit(_open_and_record, uploads, self.params, photo, metadata, run_folder)
         except Exception as error:  # missing, not an image, metadata not JSON, no endpoint, disk full
             return Outcome.failure(f"cannot queue {photo}: {error}")
         ctx.logger.info(f"queued {item.name} ({item.hash[:12]})")

@@ -19,8 +19,11 @@ def botstage(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess
     return subprocess.run(command, capture_output=True, text=True, cwd=cwd, timeout=300)
 
 
-def test_run_default_mission_writes_a_run_folder(tmp_path: Path) -> None:
-    result = botstage("run", "--out", str(tmp_path / "run"))
+HELLO = str(ROOT / "missions" / "hello.yaml")
+
+
+def test_run_a_mission_writes_a_run_folder(tmp_path: Path) -> None:
+    result = botstage("run", HELLO, "--out", str(tmp_path / "run"))
     assert result.returncode == 0, result.stderr
     assert "hello: outcome done" in result.stdout
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
@@ -33,7 +36,7 @@ def test_run_default_mission_writes_a_run_folder(tmp_path: Path) -> None:
 
 def test_run_twice_gives_the_same_trace(tmp_path: Path) -> None:
     for name in ("a", "b"):
-        assert botstage("run", "--seed", "7", "--out", str(tmp_path / name)).returncode == 0
+        assert botstage("run", HELLO, "--seed", "7", "--out", str(tmp_path / name)).returncode == 0
     assert (tmp_path / "a" / "trace.jsonl").read_bytes() == (tmp_path / "b" / "trace.jsonl").read_bytes()
 
 

@@ -99,15 +99,15 @@ def test_labels_show_bindings_and_decorators() -> None:
 
 
 def test_trace_colours_nodes_by_status_at_a_tick(tmp_path: Path) -> None:
-    assert botstage("run", "-q", "--out", str(tmp_path / "run")).returncode == 0
+    assert botstage("run", "missions/hello.yaml", "-q", "--out", str(tmp_path / "run")).returncode == 0
     trace = str(tmp_path / "run" / "trace.jsonl")
-    text = botstage("tree", "--trace", trace, "--at", "100").stdout
+    text = botstage("tree", "missions/hello.yaml", "--trace", trace, "--at", "100").stdout
     assert "state working  timeout 30 s  finished → done, timeout → done  [ACTIVE]" in text
     assert "wait  duration=4.0  [RUNNING]" in text
     assert "state greeting" in text and "state greeting  success → working, failure → stopped  [ACTIVE]" not in text
-    dot = botstage("tree", "--trace", trace, "--at", "100", "--format", "dot").stdout
+    dot = botstage("tree", "missions/hello.yaml", "--trace", trace, "--at", "100", "--format", "dot").stdout
     assert "#f0ad4e" in dot and "#5cb85c" in dot
-    mermaid = botstage("tree", "--trace", trace, "--at", "100", "--format", "mermaid").stdout
+    mermaid = botstage("tree", "missions/hello.yaml", "--trace", trace, "--at", "100", "--format", "mermaid").stdout
     assert "classDef running fill:#f0ad4e" in mermaid
 
 

@@ -84,7 +84,7 @@ def test_a_command_played_into_the_microphone_is_heard(command: str) -> None:
     outcome = rig.listen(timeout=10.0)
     assert outcome.name == "heard", outcome.reason
     assert outcome.outputs["command"] == command
-    assert outcome.outputs["text"] == command.lower()
+    assert outcome.outputs["text"] == outcome.outputs["heard"] == command.lower()
     assert 0.0 < outcome.outputs["confidence"] <= 1.0
     # heard once the quiet after it ended the utterance: after the word, within a second of it
     assert end < rig.ended < end + 1.0
@@ -100,7 +100,7 @@ def test_nothing_said_is_silence_at_the_timeout() -> None:
     rig = Rig()
     outcome = rig.listen(timeout=3.0)
     assert outcome.name == "silence"
-    assert outcome.outputs == {"command": "", "text": "", "confidence": 0.0}
+    assert outcome.outputs == {"command": "", "text": "", "confidence": 0.0, "heard": ""}
     assert rig.ended == pytest.approx(3.0, abs=0.15)
 
 

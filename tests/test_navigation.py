@@ -210,6 +210,16 @@ def test_wander_patrols_in_order_and_records_the_checkpoint() -> None:
     assert sim.board.get("last_checkpoint") == "exhibit_a"  # written at the end of the round
 
 
+def test_wander_with_stops_goes_on_one_checkpoint_at_a_time() -> None:
+    """The entertainer's Wandering: one leg, then Crowd Detection at the checkpoint, then the next."""
+    sim = NavSim("museum", "peoplebot", "hall_centre")
+    sim.board.set("last_checkpoint", "hall_centre")
+    for expected in ("exhibit_c", "exhibit_b", "hall_centre"):
+        outcome = sim.run(Wander(), checkpoints=["hall_centre", "exhibit_c", "exhibit_b"], stops=1, pause=0.0)
+        assert outcome.name == "success" and outcome.outputs["visited"] == 1
+        assert sim.board.get("last_checkpoint") == expected
+
+
 def test_wander_at_random_is_seeded_and_skips_what_it_cannot_reach() -> None:
     def visits(seed: int) -> list[str]:
         sim = NavSim("museum", "peoplebot", "entrance", seed=seed)

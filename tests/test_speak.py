@@ -306,3 +306,35 @@ def test_mocked_speech_is_in_the_transcript_too(tmp_path: Path) -> None:
     assert result.folder is not None
     lines = read_transcript(result.folder)
     assert [(u.who, u.text) for u in lines][:2] == [("visitor", "hello"), ("robot", "mocked words")]
+
+
+def test_words_heard_then_answered_are_one_line_at_the_time_they_were_heard(tmp_path: Path) -> None:
+    from missions.transcript import transcript
+
+    def event(t: float, ev: str, node: str, skill: str, **outputs: str) -> str:
+        fields = {"t": t, "ev": ev, "node": node, "skill": skill}
+        if ev == "skill_outcome":
+            fields["outputs"] = outputs
+        return json.dumps(fields)
+
+    trace = tmp_path / "trace.jsonl"
+    trace.write_text(
+        "\n".join(
+            [
+                event(10.0, "skill_start", "listening", "listen"),
+                event(14.5, "skill_outcome", "listening", "listen", heard="whatsup", command="WHATSUP"),
+                event(14.6, "skill_start", "answer", "converse"),
+                event(14.7, "skill_outcome", "answer", "converse", heard="whatsup", reply="Welcome!"),
+                event(14.8, "skill_start", "say", "speak"),
+                event(17.0, "skill_outcome", "say", "speak", said="Welcome!"),
+                event(20.0, "skill_start", "listening", "listen"),
+                event(22.0, "skill_outcome", "listening", "listen", heard="whatsup"),
+            ]
+        )
+        + "\n"
+    )
+    assert [(u.t, u.who, u.text, u.skill) for u in transcript(trace)] == [
+        (14.5, "visitor", "whatsup", "listen"),  # when it was recognised, not when listening began
+        (14.8, "robot", "Welcome!", "speak"),  # when the robot began to talk
+        (22.0, "visitor", "whatsup", "listen"),  # said again after the answer: a line of its own
+    ]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -87,6 +89,38 @@ def test_the_same_seed_says_the_same_things_at_the_same_times() -> None:
     other = backend(seed=10, people=25)
     run(other, 120.0)
     assert [(s.t, s.clip, s.person) for s in other.voices.spoken] != said[0]  # type: ignore[union-attr]
+
+
+def test_command_weights_set_how_often_each_command_is_said_and_turns_leave_a_pause() -> None:
+    sim = backend(seed=3)
+    stand(sim, (12.5, 10.0))
+    sim.voices = Voices.for_world(  # type: ignore[union-attr]
+        sim.world,
+        sim.crowd,
+        sim.devices["microphone"],
+        every=2.0,
+        command_share=1.0,
+        pause=1.5,
+        command_weights={"PHOTO": 3, "CIAO": 1},
+    )
+    run(sim, 600.0)
+    spoken = sim.voices.spoken
+    said = [s.command for s in spoken]
+    assert set(said) == {"PHOTO", "CIAO"}  # weight 0 (not listed): never said
+    assert 2.0 < said.count("PHOTO") / said.count("CIAO") < 4.5
+    by_name = {c.name: c for c in clips()}
+    gaps = [b.t - (a.t + by_name[a.clip].duration) for a, b in itertools.pairwise(spoken)]
+    assert min(gaps) >= 1.5 - 0.1  # the tick rounds the start up to 0.1 s
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{"command_weights": {"PHOTOS": 1}}, {"command_weights": {"PHOTO": -1}}, {"pause": -1.0}, {"every": 0.0}],
+)
+def test_bad_voice_settings_say_what_is_wrong(options: dict) -> None:
+    sim = backend()
+    with pytest.raises(ValueError, match=r"command weights|voices need"):
+        Voices.for_world(sim.world, sim.crowd, sim.devices["microphone"], **options)
 
 
 def test_voices_leave_the_rest_of_the_world_alone() -> None:

@@ -19,13 +19,52 @@ from skills.outbox.settings import TOKEN_ENV
 COUNTERS = ("photos_queued", "photos_uploaded", "photos_pending", "photos_rejected")
 
 
+class RunGallery:
+    """The gallery a run starts for itself; a scenario can take it down and bring it back (same
+    port, same folder), to see that uploads wait and resume without losing or repeating a photo."""
+
+    def __init__(self, folder: Path) -> None:
+        from missions.gallery.server import start_gallery  # FastAPI and uvicorn load only when used
+
+        self._start = start_gallery
+        self.folder = folder
+        self.token = os.environ.get(TOKEN_ENV) or None
+        self._running = start_gallery(folder, token=self.token)
+        self.port = self._running.port
+        self.upload_url = self._running.upload_url
+
+    @property
+    def up(self) -> bool:
+        return self._running is not None
+
+    def down(self) -> None:
+        if self._running is not None:
+            self._running.stop()
+            self._running = None
+
+    def restart(self) -> None:
+        if self._running is None:
+            self._running = self._start(self.folder, port=self.port, token=self.token)
+
+    def stop(self) -> None:
+        self.down()
+
+
 def run_uploads(folder: Path, clock: Clock, seed: int) -> Uploads:
-    def local_gallery():  # imported here: FastAPI and uvicorn load only for a run that uploads
-        from missions.gallery.server import start_gallery
+    return Uploads(folder, clock, seed=seed, local_gallery=lambda: RunGallery(folder / "gallery"))
 
-        return start_gallery(folder / "gallery", token=os.environ.get(TOKEN_ENV) or None)
 
-    return Uploads(folder, clock, seed=seed, local_gallery=local_gallery)
+def set_gallery(uploads: Uploads, up: bool) -> None:
+    """Take the run's own gallery down or bring it back (started now if no photo started it yet)."""
+    if uploads.gallery is None:
+        uploads.start_local_gallery()
+    gallery = uploads.gallery
+    if not isinstance(gallery, RunGallery):
+        raise TypeError("only the gallery a run starts for itself can be taken down")
+    if up:
+        gallery.restart()
+    else:
+        gallery.down()
 
 
 def fill_counters(counters: dict[str, object], summary: dict[str, object]) -> None:

@@ -73,11 +73,15 @@ class Uploads:
             return opened
 
     def _local_endpoint(self) -> str:
+        return self.start_local_gallery().upload_url
+
+    def start_local_gallery(self) -> LocalGallery:
+        """The run's own gallery, started the first time it is needed."""
         if self.gallery is None:
             if self._start_gallery is None:
                 raise LookupError("no gallery endpoint is configured (skill_params: {upload: {endpoint: URL}})")
             self.gallery = self._start_gallery()
-        return self.gallery.upload_url
+        return self.gallery
 
     def after_tick(self) -> None:
         """On the simulated clock: each outbox starts what is due, and its answers are applied now."""
