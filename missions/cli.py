@@ -684,6 +684,15 @@ def bench_upload(quick: bool = typer.Option(False, help="fewer photos: a smoke t
         _stderr([f"under target: {', '.join(slow)}"])
 
 
+@bench_app.command("entertainer")
+def bench_entertainer(quick: bool = typer.Option(False, help="one seed, 2 minutes: a smoke test")) -> None:
+    """The default mission's wall time for 10 simulated minutes (target < 60 s), on several seeds."""
+    results = _load_bench("entertainer").main(quick=quick)
+    slow = [r for r in results if r.get("bench") == "entertainer_run" and r["target_ratio"] < 1.0]
+    if slow and not quick:
+        raise typer.Exit(1)
+
+
 @bench_app.command("serial")
 def bench_serial(quick: bool = typer.Option(False, help="smaller buffers, fewer commands: a smoke test")) -> None:
     """Chefbot's Launchpad link: lines parsed per second (parser alone and through a pty), command latency."""
