@@ -237,3 +237,18 @@ def test_botstage_gallery_says_when_the_port_is_taken(tmp_path) -> None:
         taken.close()
     assert result.returncode == 2
     assert f"error: cannot serve on 127.0.0.1:{port}" in result.stderr
+
+
+def test_after_refusing_a_non_image_an_oversized_file_and_a_wrong_token_it_still_takes_photos(tmp_path, jpeg) -> None:
+    auth = {"Authorization": f"Bearer {TOKEN}"}
+    with start_gallery(tmp_path / "g", token=TOKEN, max_bytes=len(jpeg) + 10) as strict:
+        refused = [
+            post(strict, b"just some text", headers=auth),
+            post(strict, jpeg * 3, headers=auth),
+            post(strict, jpeg, headers={"Authorization": "Bearer nope"}),
+        ]
+        assert [r.status_code for r in refused] == [415, 413, 401]
+        assert all(r.json()["detail"] for r in refused)  # each says why
+        assert post(strict, jpeg, headers=auth).status_code == 201
+        assert httpx.get(strict.url + "/").status_code == 200
+        assert len(photos_in(strict)) == 1
