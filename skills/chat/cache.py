@@ -15,7 +15,6 @@ import hashlib
 import json
 import os
 import sys
-import tempfile
 import threading
 import time
 import zlib
@@ -29,6 +28,7 @@ from aiml.constants import VERSION as PYAIML_VERSION
 from robots.located_yaml import Location, Problem
 from skills.chat.brain import FlatTrie, build
 from skills.chat.learn import learn_files
+from skills.files import write_atomically
 
 FORMAT = 1
 MAGIC = b"botstage-aiml-brain\n"
@@ -107,7 +107,7 @@ def load_brain(
 
 
 def write_brain(path: Path, key: str, trie: FlatTrie, problems: Sequence[Problem]) -> None:
-    """Write atomically: a temporary file in the same folder, flushed, then renamed over ``path``."""
+    """Write atomically (skills.files): a crash leaves the old cache or the new one, never half."""
     sections = trie.sections()
     header = {
         "key": key,
@@ -115,20 +115,8 @@ def write_brain(path: Path, key: str, trie: FlatTrie, problems: Sequence[Problem
         "crc32": [zlib.crc32(s) for s in sections],
         "problems": [[p.location.file, p.location.line, p.location.col, p.message, p.hint] for p in problems],
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, temporary = tempfile.mkstemp(prefix=".brain-", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as out:
-            out.write(MAGIC)
-            out.write(json.dumps(header).encode() + b"\n")
-            for section in sections:
-                out.write(section)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    data = b"".join([MAGIC, json.dumps(header).encode() + b"\n", *sections])
+    write_atomically(path, data, sync_folder=False)  # a cache: a lost rename only costs a relearn
 
 
 def read_brain(path: Path, key: str) -> tuple[FlatTrie, list[Problem]]:

@@ -30,6 +30,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from skills.files import fsync_dir
 from skills.outbox.images import HEAD_BYTES, sniff
 
 PENDING = "pending"
@@ -74,15 +75,6 @@ class Item:
     state: str = PENDING
     attempts: int = 0
     last_error: str = ""
-
-
-def fsync_dir(folder: Path) -> None:
-    """Make a rename or a new file in ``folder`` durable (the directory entry itself)."""
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 def _write_durably(path: Path, data: bytes, tmp_folder: Path) -> None:
