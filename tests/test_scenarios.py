@@ -197,9 +197,9 @@ def test_coverage_counts_and_pictures(tmp_path: Path) -> None:
         "hello/working/rest:failure",
         "hello/preempt:estop",
     }
-    text = botstage("machine", "--coverage", str(cov)).stdout
+    text = botstage("machine", "missions/hello.yaml", "--coverage", str(cov)).stdout
     assert "failure -> stopped (untested)" in text and "preempt: estop -> stopped (untested)" in text
-    dot = botstage("machine", "--coverage", str(cov), "--format", "dot").stdout
+    dot = botstage("machine", "missions/hello.yaml", "--coverage", str(cov), "--format", "dot").stdout
     assert dot.count('style=dashed, color="#999999"') == 5  # 4 untested transitions and the preemption
     whole = botstage("test", "missions/scenarios/hello", "--coverage", "--coverage-file", str(cov))  # the whole suite
     assert "100% (9/9)" in whole.stdout and "untested" not in whole.stdout
