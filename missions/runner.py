@@ -36,6 +36,7 @@ from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
 from robots.profile import Profile, load_profile, profile_path
 from robots.sim.backend import SimBackend, known_maps, map_path
+from skills.delivery.inbox import OrderInbox
 from skills.registry import Registry
 
 if TYPE_CHECKING:  # the serial backends load pyserial and ptys only when a run asks for them
@@ -145,7 +146,7 @@ def run(
             seed=seed,
             trace=Trace(clock, sink, keep=False),
             registry=registry,
-            interfaces={**devices, "uploads": uploads},
+            interfaces={**devices, "uploads": uploads, "orders": OrderInbox(folder / "inbox")},
         )
         try:
             root = build(engine, checked, blackboard)

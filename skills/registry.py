@@ -37,6 +37,9 @@ BUILTIN_MODULES = (
     "skills.speak",
     "skills.upload",
     "skills.listen",
+    "skills.wait_for",
+    "skills.orders",
+    "skills.monitors",
 )
 
 

@@ -96,7 +96,8 @@ class SimBackend:
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
         # people near the robot speak into its microphone (robots/sim/voices.py)
         microphone = self.devices.get("microphone")
-        self.voices = Voices.for_world(self.world, self.crowd, microphone) if microphone is not None else None
+        speaker = self.devices.get("speaker")
+        self.voices = Voices.for_world(self.world, self.crowd, microphone, speaker) if microphone is not None else None
 
     def step(self) -> None:
         self.world.step(self.clock.period)
