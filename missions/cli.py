@@ -714,6 +714,15 @@ def bench_serial(quick: bool = typer.Option(False, help="smaller buffers, fewer 
         _stderr([f"target missed: {', '.join(missed)}"])
 
 
+@bench_app.command("delivery")
+def bench_delivery(quick: bool = typer.Option(False, help="one seed: a smoke test, not figures to quote")) -> None:
+    """Chefbot's delivery mission: time per delivery; final pose error, odometry alone vs EKF vs map."""
+    results = _load_bench("delivery").main(quick=quick)
+    short = [r["seed"] for r in results if "seed" in r and r["failed"]]
+    if short and not quick:
+        _stderr([f"orders failed with seeds: {', '.join(map(str, short))}"])
+
+
 @bench_app.command("speech")
 def bench_speech(
     quick: bool = typer.Option(False, help="three voices, one speed, three conditions: a smoke test"),
