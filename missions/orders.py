@@ -43,17 +43,19 @@ def find_inbox(run: Path | None, runs: Path = Path("runs")) -> Path:
     return inboxes[0]
 
 
-def served_tables(inbox: Path) -> list[str]:
+def served_tables(inbox: Path) -> list[str] | None:
+    """The tables the inbox's mission serves (None: any)."""
     try:
         accepts = json.loads((inbox / ACCEPTS).read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError) as exc:
         raise OrderError(f"cannot read {inbox / ACCEPTS}: {exc}") from None
-    return [str(table) for table in accepts.get("tables", [])]
+    tables = accepts.get("tables") if isinstance(accepts, dict) else None
+    return None if tables is None else [str(table) for table in tables]
 
 
 def post_order(inbox: Path, table: str, item: str) -> Path:
     """Check the order against the inbox's tables and drop it in; the file it became."""
-    order = parse_order({"table": table, "item": item}, served_tables(inbox) or None, source="cli")
+    order = parse_order({"table": table, "item": item}, served_tables(inbox), source="cli")
     # the arrival time first, so the mission reads orders in the order they came
     path = inbox / f"{time.time_ns():020d}-{os.getpid()}-{uuid.uuid4().hex[:8]}.json"
     write_atomically(path, json.dumps({"table": order.table, "item": order.item}))

@@ -145,8 +145,8 @@ class TakeOrder(Skill):
         book = _Book(ctx, queue, received, failed)
         served = served_tables(ctx, tables)
         inbox = _inbox(ctx)
-        if inbox is not None and inbox.tables is None:
-            yield ctx.submit(inbox.open, served or [])
+        if inbox is not None and not inbox.opened:
+            yield ctx.submit(inbox.open, served)
         book.admit(served)
         deadline = ctx.clock.now() + wait - _EPSILON
         while True:
@@ -220,7 +220,7 @@ class DropOrders(Skill):
         book = _Book(ctx, queue, received, failed)
         inbox = _inbox(ctx)
         book.admit(None)
-        if inbox is not None and inbox.tables is not None:
+        if inbox is not None and inbox.opened:
             book.add((yield ctx.submit(inbox.take)))
         dropped = len(book.queue)
         for order in book.queue:

@@ -313,3 +313,27 @@ def test_odometer_adds_up_the_distance_and_writes_it_when_cancelled() -> None:
     assert rig.board.get("distance") == pytest.approx(0.3)  # written once a second
     execution.cancel()
     assert rig.board.get("distance") == pytest.approx(0.45)
+
+
+def test_post_order_checks_the_order_against_the_inbox_before_writing(tmp_path: Path) -> None:
+    from missions.orders import find_inbox, post_order
+
+    with pytest.raises(OrderError, match="no open order inbox"):
+        find_inbox(tmp_path / "run")
+    inbox = OrderInbox(tmp_path / "run" / "inbox")
+    inbox.open(TABLES)
+    assert find_inbox(tmp_path / "run") == inbox.folder
+    assert find_inbox(None, runs=tmp_path) == inbox.folder
+    path = post_order(inbox.folder, "table_3", "  hot   chocolate ")
+    assert json.loads(path.read_text()) == {"table": "table_3", "item": "hot chocolate"}
+    assert not list(inbox.folder.glob(".*.tmp"))  # written aside, then renamed
+    with pytest.raises(OrderError, match="unknown table 'table_7'"):
+        post_order(inbox.folder, "table_7", "tea")
+    assert [o.item for o in inbox.take()] == ["hot chocolate"]  # nothing else was written
+    anywhere = OrderInbox(tmp_path / "other" / "inbox")
+    anywhere.open(None)  # a mission on a map without tables serves any place
+    post_order(anywhere.folder, "terrace", "tea")
+    assert [o.table for o in anywhere.take()] == ["terrace"]
+    (inbox.folder / ACCEPTS).write_text("{broken", encoding="utf-8")
+    with pytest.raises(OrderError, match="cannot read"):
+        post_order(inbox.folder, "table_1", "tea")

@@ -68,20 +68,22 @@ class OrderInbox:
 
     def __init__(self, folder: Path) -> None:
         self.folder = folder
-        self.tables: list[str] | None = None
+        self.opened = False
+        self.tables: list[str] | None = None  # None: any table
         self.taken = 0
         self.rejected: list[dict[str, str]] = []
 
-    def open(self, tables: list[str]) -> None:
-        """Create the folders and say which tables are served (blocking: from ``ctx.submit``)."""
+    def open(self, tables: list[str] | None) -> None:
+        """Create the folders and say which tables are served, None for any (blocking: from ``ctx.submit``)."""
         for sub in ("", "taken", "rejected"):
             (self.folder / sub).mkdir(parents=True, exist_ok=True)
-        self.tables = list(tables)
+        self.tables = None if tables is None else list(tables)
         write_atomically(self.folder / ACCEPTS, json.dumps({"tables": self.tables, "pid": os.getpid()}))
+        self.opened = True
 
     def take(self) -> list[Order]:
         """The orders that arrived since the last call, in arrival order (blocking: file I/O)."""
-        if self.tables is None:
+        if not self.opened:
             raise RuntimeError("the order inbox is not open")
         orders = []
         for path in sorted(self.folder.glob("*.json")):
