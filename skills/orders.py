@@ -60,6 +60,7 @@ class _Book:
         self.queue = _read_list(ctx, queue)
         self.received = _read_int(ctx, received)
         self.failed = _read_list(ctx, failed)
+        self._saved: tuple[Any, ...] | None = None  # what the blackboard holds, once written
 
     def admit(self, tables: list[str] | None) -> None:
         """Give every order not seen before an id, and fail at once those that cannot be served."""
@@ -89,10 +90,16 @@ class _Book:
         self.ctx.logger.warning(f"order {entry['id']} ({entry['item']} for {entry['table']}) failed: {reason}")
 
     def save(self) -> None:
+        """Write the three keys, unless nothing changed since the last write (a waiting
+        take_order saves every look into the inbox: the trace keeps only changes)."""
+        state = (list(self.queue), self.received, list(self.failed))
+        if state == self._saved:
+            return
         queue, received, failed = self.keys
         self.ctx.blackboard.set(queue, self.queue)
         self.ctx.blackboard.set(received, self.received)
         self.ctx.blackboard.set(failed, self.failed)
+        self._saved = state
 
 
 def _field(entry: Any, name: str) -> Any:
