@@ -141,6 +141,27 @@ def run(
         raise typer.Exit(130)
 
 
+@app.command()
+def order(
+    table: str = typer.Argument(..., help="the table to serve, e.g. table_3"),
+    item: str = typer.Argument(..., help="what to bring, e.g. 'tomato soup'"),
+    run_folder: Path | None = typer.Option(None, "--run", help="the run folder (default: the newest running mission)"),
+    runs: Path = typer.Option(Path("runs"), help="where to look for running missions"),
+) -> None:
+    """Give a running delivery mission an order (through its run folder's inbox; see the README)."""
+    from missions.orders import find_inbox, post_order
+    from skills.delivery.inbox import OrderError
+
+    try:
+        inbox = find_inbox(run_folder, runs)
+        path = post_order(inbox, table, item)
+    except OrderError as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    except OSError as exc:
+        raise _fail(f"error: cannot write the order: {exc}", 2) from None
+    console.print(f"order for {table}: {' '.join(item.split())} -> {path}", highlight=False, soft_wrap=True)
+
+
 def _picture(
     mission: Path,
     tree: str | None,
@@ -700,6 +721,15 @@ def bench_serial(quick: bool = typer.Option(False, help="smaller buffers, fewer 
     missed = [r["bench"] for r in results if not r.get("meets_target", True)]
     if missed and not quick:
         _stderr([f"target missed: {', '.join(missed)}"])
+
+
+@bench_app.command("delivery")
+def bench_delivery(quick: bool = typer.Option(False, help="one seed: a smoke test, not figures to quote")) -> None:
+    """Chefbot's delivery mission: time per delivery; final pose error, odometry alone vs EKF vs map."""
+    results = _load_bench("delivery").main(quick=quick)
+    short = [r["seed"] for r in results if "seed" in r and r["failed"]]
+    if short and not quick:
+        _stderr([f"orders failed with seeds: {', '.join(map(str, short))}"])
 
 
 @bench_app.command("speech")

@@ -36,6 +36,7 @@ from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
 from robots.profile import Profile, load_profile, profile_path
 from robots.sim.backend import SimBackend, known_maps, map_path
+from skills.delivery.inbox import OrderInbox
 from skills.files import RunFiles
 from skills.registry import Registry
 
@@ -146,7 +147,12 @@ def run(
             seed=seed,
             trace=Trace(clock, sink, keep=False),
             registry=registry,
-            interfaces={**devices, "uploads": uploads, "files": RunFiles(folder)},
+            interfaces={
+                **devices,
+                "uploads": uploads,
+                "files": RunFiles(folder),
+                "orders": OrderInbox(folder / "inbox"),
+            },
         )
         try:
             root = build(engine, checked, blackboard)

@@ -39,7 +39,9 @@ BUILTIN_MODULES = (
     "skills.listen",
     "skills.photo",
     "skills.display",
-    "skills.watch_battery",
+    "skills.wait_for",
+    "skills.orders",
+    "skills.monitors",
 )
 
 

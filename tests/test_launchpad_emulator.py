@@ -66,7 +66,9 @@ def assert_odometry_agrees(robot: EmulatorBackend, cm: float = 3.0, degrees: flo
 def test_a_short_drive_moves_the_simulated_robot_and_odometry_agrees(chefbot_over_serial: EmulatorBackend) -> None:
     robot = chefbot_over_serial
     assert check_interfaces(robot.devices) == []
-    assert set(robot.devices) == {"drive", "odometry", "imu", "sonar", "battery", "laser"}
+    # the board's five, the depth scan, and the PC's speaker and microphone (simulated beside it)
+    assert set(robot.devices) == {"drive", "odometry", "imu", "sonar", "battery", "laser", "speaker", "microphone"}
+    assert robot.not_simulated == []
     drive(robot, 0.25, 0.4, 2.5)
     truth = robot.world.body.pose
     assert math.hypot(truth.x - OPEN_FLOOR.x, truth.y - OPEN_FLOOR.y) > 0.4  # it moved

@@ -1,5 +1,4 @@
-"""photo (frames saved whole with their metadata), display (the layout supervisor), watch_battery,
-wander's stops, and what the report makes of photos and layouts."""
+"""photo (frames saved whole with their metadata) and display (the layout supervisor)."""
 
 from __future__ import annotations
 
@@ -13,12 +12,11 @@ import cv2
 import numpy as np
 import pytest
 
-from robots.interfaces import BatteryState, CameraInfo, Pose2D
+from robots.interfaces import CameraInfo, Pose2D
 from robots.sim.devices import SimDisplay
 from skills.display import LAYOUTS, Display
 from skills.files import RunFiles, write_atomically
 from skills.photo import Photo
-from skills.watch_battery import WatchBattery
 from tests.test_converse import Harness
 
 
@@ -167,34 +165,3 @@ def test_an_unknown_default_layout_fails_at_once(harness: Harness) -> None:
     harness.interfaces["display"] = SimDisplay(harness.clock)
     outcome, _ = harness.run(Display(), default="Layout_7")
     assert outcome.name == "failure" and "unknown default layout 'Layout_7'" in outcome.reason
-
-
-# -- watch_battery -----------------------------------------------------------------------------
-
-
-class Battery:
-    def __init__(self, *percents: float | None) -> None:
-        self.percents = list(percents)
-
-    def read(self) -> BatteryState:
-        percent = self.percents.pop(0) if len(self.percents) > 1 else self.percents[0]
-        if percent is None:
-            raise ConnectionError("board silent")
-        return BatteryState(0.0, 12.0, percent)
-
-
-def test_the_charge_is_written_when_it_moves_a_step_and_kept_when_reading_fails(harness: Harness) -> None:
-    harness.interfaces["battery"] = Battery(80.2, 80.4, 79.6, None, None, 19.4, 19.4)
-    run = harness.execution(WatchBattery())
-    written: list[float] = []
-    board = run.ctx.blackboard
-    original = board.set
-    board.set = lambda key, value: (written.append(value), original(key, value))  # type: ignore[method-assign]
-    assert run.start({"key": "battery_pct"}) is None
-    for _ in range(6):
-        harness.tick()
-        assert run.step() is None
-    assert written == [80.0, 19.0]  # 80.2, 80.4 and 79.6 are all 80 %; two failed reads keep it
-    assert board.get("battery_pct") == 19.0
-    assert sum("cannot read the battery: board silent" in line for line in harness.logs) == 1
-    run.cancel()

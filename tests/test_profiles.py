@@ -25,7 +25,8 @@ def test_shipped_profiles_load_with_the_books_figures() -> None:
         2.0,
     )
     assert (chefbot.battery.nominal_voltage, chefbot.battery.capacity_ah) == (12.0, 10.0)
-    assert set(chefbot.interfaces) == {"drive", "odometry", "imu", "sonar", "battery", "laser"}  # laser: the depth scan
+    # laser: the depth scan; speaker and microphone: on its PC, for the delivery mission
+    assert set(chefbot.interfaces) == {"drive", "odometry", "imu", "sonar", "battery", "laser", "speaker", "microphone"}
     assert base.ticks_per_metre == pytest.approx(4480 / (3.141592653589793 * 0.09))
     peoplebot, problems, _ = load_profile(Path("robots/profiles/peoplebot.yaml"))
     assert problems == [] and peoplebot is not None
@@ -91,8 +92,9 @@ def test_missions_name_robots_by_profile_or_path(tmp_path: Path) -> None:
     ]
     (tmp_path / "mine.yaml").write_text(CHEFBOT.read_text().replace("skills: {}", "skills:\n  wait: {speed: 2}"))
     mission.write_text("robot: mine.yaml\n" + body)
+    line = CHEFBOT.read_text().splitlines().index("skills: {}") + 2  # the line of `wait:` below it
     assert [str(p).replace(str(tmp_path) + "/", "") for p in check(mission).problems] == [
-        "mine.yaml:41:3: error: parameter of 'wait': Extra inputs are not permitted"
+        f"mine.yaml:{line}:3: error: parameter of 'wait': Extra inputs are not permitted"
     ]
     mission.write_text("world: museum\n" + body)
     assert "a world needs a robot to put in it" in str(check(mission).problems[0])

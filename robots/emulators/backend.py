@@ -21,7 +21,8 @@ from robots.gridmap import GridMap
 from robots.interfaces import LaserScan, Pose2D
 from robots.profile import Profile
 from robots.sim.backend import populated_world
-from robots.sim.devices import SimLaser
+from robots.sim.devices import SimLaser, SimMicrophone, SimSpeaker
+from robots.sim.voices import Voices
 
 
 class _LockedLaser:
@@ -61,6 +62,14 @@ class EmulatorBackend:
         self.devices: dict[str, Any] = dict(self.serial.devices)
         if "laser" in profile.interfaces and "laser" not in self.devices:
             self.devices["laser"] = _LockedLaser(SimLaser(self.world, profile.interfaces["laser"], clock), self.lock)
+        # the speaker and microphone are the robot's PC's, not the board's: simulated, with the
+        # simulator's voices (seated guests answer the robot's questions)
+        self.voices: Voices | None = None
+        if "speaker" in profile.interfaces:
+            self.devices["speaker"] = SimSpeaker(clock)
+        if "microphone" in profile.interfaces:
+            self.devices["microphone"] = microphone = SimMicrophone(self.world, clock)
+            self.voices = Voices.for_world(self.world, self.crowd, microphone, self.devices.get("speaker"))
         self.not_simulated = sorted(set(profile.interfaces) - set(self.devices))
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
 
@@ -71,11 +80,18 @@ class EmulatorBackend:
         laser = self.devices.get("laser")
         if isinstance(laser, _LockedLaser):
             laser.laser.clock = clock
+        speaker, microphone = self.devices.get("speaker"), self.devices.get("microphone")
+        if isinstance(speaker, SimSpeaker):
+            speaker.clock = clock
+        if isinstance(microphone, SimMicrophone):
+            microphone.use_clock(clock)
 
     def step(self) -> None:
         with self.lock:
             pose = self.world.body.pose
             self.trajectory.append((self.world.time, pose.x, pose.y, pose.theta))
+            if self.voices is not None:
+                self.voices.step(self.clock.now())
 
     def close(self) -> None:
         try:

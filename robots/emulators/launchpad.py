@@ -113,6 +113,9 @@ class LaunchpadEmulator:
         self.path = str(self.link_dir / "ttyLaunchpad")
         self.pty_path: str | None = None
         self.counters: Counter[str] = Counter()
+        # the first speed command heard on each link (the first plug and every replug)
+        self.first_speeds: list[tuple[int, int]] = []
+        self._fresh_link = True
         self.commands = CommandDecoder()
         self.speeds = (0, 0)  # motor outputs applied (PWM)
         self.stalled: set[str] = set()
@@ -195,6 +198,7 @@ class LaunchpadEmulator:
         with self._fault_lock:
             self._master, self._slave, self.pty_path = master, slave, pty_path
             self._replug_at = None
+            self._fresh_link = True
         self.counters["plugs"] += 1
 
     def disconnect(self, for_s: float) -> None:
@@ -263,6 +267,9 @@ class LaunchpadEmulator:
         for command in self.commands.feed(data):
             self.counters[f"command_{command.kind}"] += 1
             if command.kind == "s":
+                if self._fresh_link:  # what a driver says first on a new link (it must be zero)
+                    self._fresh_link = False
+                    self.first_speeds.append((command.left, command.right))
                 self.speeds = (
                     max(-PWM_LIMIT, min(PWM_LIMIT, command.left)),
                     max(-PWM_LIMIT, min(PWM_LIMIT, command.right)),

@@ -97,8 +97,11 @@ class SimBackend:
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
         # people near the robot speak into its microphone (robots/sim/voices.py)
         microphone = self.devices.get("microphone")
+        speaker = self.devices.get("speaker")
         self.voices = (
-            Voices.for_world(self.world, self.crowd, microphone, **(voices or {})) if microphone is not None else None
+            Voices.for_world(self.world, self.crowd, microphone, speaker, **(voices or {}))
+            if microphone is not None
+            else None
         )
 
     def step(self) -> None:

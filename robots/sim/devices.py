@@ -288,6 +288,12 @@ class SimMicrophone:
         self._sounds: list[tuple[int, np.ndarray]] = []  # (first sample index, samples as int32)
         self._noise_std = 32768 * 10 ** (self.NOISE_DBFS / 20)
 
+    def use_clock(self, clock: Clock) -> None:
+        """Hear on this clock from now on (a run's clock that starts once the robot is up)."""
+        self.clock = clock
+        self._next = self._samples_until(clock.now())
+        self._sounds = []
+
     def _samples_until(self, t: float) -> int:
         """How many samples lie before time ``t`` (those at n / RATE < t); the epsilon keeps an
         exact sample time that floating point puts a hair above it from counting early."""

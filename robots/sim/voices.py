@@ -6,7 +6,12 @@ Utterances are WAV clips made with espeak-ng (commands and chat phrases, in seve
 - at **scripted** moments (``say``), whoever is around, for tests and demos;
 - at **random** moments when someone stands within ``near`` metres of the robot: after each
   utterance (or after a quiet check) the next is due ``pause`` plus an exponential wait of mean ``every``
-  seconds later, and the clip is drawn at random, commands ``command_share`` of the time.
+  seconds later, and the clip is drawn at random, commands ``command_share`` of the time (each
+  command as often as ``command_weights`` says);
+- as **answers**: guests seated at the map's tables (its places named ``table_*``) answer YES
+  when the robot, within ``near`` metres of their table, asks a question (its speaker says
+  something ending in ``?``), ``answer_delay`` seconds after it stopped speaking. This is how
+  a delivery is confirmed in simulation without a person at the keyboard.
 
 The randomness comes from the world's ``voices`` generator, so the same seed gives the same
 utterances at the same moments, and adding voices changes nothing else in the world.
@@ -89,8 +94,13 @@ class Voices:
     command_weights: dict[str, float] = field(default_factory=dict)  # command -> weight (default 1 each)
     library: tuple[Clip, ...] = field(default_factory=clips)
     spoken: list[Spoken] = field(default_factory=list)
+    speaker: Any = None  # the robot's SimSpeaker: what it said, for the seated guests to answer
+    seats: tuple[tuple[float, float], ...] = ()
+    answer_delay: float = 0.8
     _next: float = 0.0
     _busy_until: float = 0.0
+    _heard: int = 0  # how many of the speaker's lines the guests have listened to
+    _asked: bool = False
 
     def __post_init__(self) -> None:
         if self.near <= 0 or self.every <= 0 or self.pause < 0 or not 0 <= self.command_share <= 1:
@@ -105,13 +115,24 @@ class Voices:
         self._next = float(self.rng.exponential(self.every))
 
     @classmethod
-    def for_world(cls, world: World, crowd: Crowd, microphone: SimMicrophone, **options: Any) -> Voices:
+    def for_world(
+        cls, world: World, crowd: Crowd, microphone: SimMicrophone, speaker: Any = None, **options: Any
+    ) -> Voices:
         pose = world.body
 
         def robot() -> tuple[float, float]:
             return pose.pose.x, pose.pose.y
 
-        return cls(microphone, crowd, robot, world.noise("voices"), **options)  # type: ignore[arg-type]
+        seats = tuple((x, y) for name, (x, y, _) in sorted(world.grid.places.items()) if name.startswith("table"))
+        return cls(
+            microphone,
+            crowd,
+            robot,
+            world.noise("voices"),
+            speaker=speaker,
+            seats=seats if speaker is not None else (),
+            **options,  # type: ignore[arg-type]
+        )
 
     def clip(self, name: str) -> Clip:
         for clip in self.library:
@@ -127,6 +148,7 @@ class Voices:
         self._busy_until = max(self._busy_until, at + chosen.duration)
 
     def step(self, now: float) -> None:
+        self._answer(now)
         if now < self._next or now < self._busy_until or not self.library:
             return
         speaker = self._nearest(now)
@@ -155,6 +177,22 @@ class Voices:
         if weights.sum() <= 0:
             return commands[int(self.rng.integers(len(commands)))]
         return commands[int(self.rng.choice(len(commands), p=weights / weights.sum()))]
+
+    def _answer(self, now: float) -> None:
+        """A seated guest answers YES to a question the robot asked at their table."""
+        if self.speaker is None or not self.seats:
+            return
+        said = self.speaker.said
+        if len(said) > self._heard:
+            rx, ry = self.robot()
+            at_table = any(math.hypot(x - rx, y - ry) <= self.near for x, y in self.seats)
+            self._asked |= at_table and any(text.rstrip().endswith("?") for _, text in said[self._heard :])
+            self._heard = len(said)
+        if self._asked and not self.speaker.busy():
+            yes = [c for c in self.library if c.command == "YES"]
+            if yes:
+                self.say(yes[int(self.rng.integers(len(yes)))], now + self.answer_delay, person=-1)
+            self._asked = False
 
     def _nearest(self, now: float) -> int | None:
         rx, ry = self.robot()

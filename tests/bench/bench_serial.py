@@ -14,6 +14,11 @@ and a velocity command's bytes are on the pty within 2 ms at the 99th percentile
   readable on the pty's master (what the board would receive), alternating two commands so
   each one changes the outputs; once with the board silent, once while it streams its lines at
   the firmware's rate (the reader thread busy beside the caller).
+- **the pty's floor**: the same round trip with no driver at all (8 bytes written to the slave
+  with ``os.write``, read on the master): what the machine itself gives.
+- each latency again **under SCHED_FIFO** (``chrt -f 10``), when the OS allows it: the process
+  is then not preempted by other processes, as on a robot PC that runs its driver so. The gap
+  between the two says how much of the tail is the scheduler's (see the README).
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ import tempfile
 import threading
 import time
 import tty
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -233,14 +240,64 @@ def bench_latency(commands: int, streaming: bool) -> dict[str, Any]:
     }
 
 
+def bench_pty_floor(commands: int) -> dict[str, Any]:
+    """The round trip with nothing of ours in it: os.write on the slave, select and read on the master."""
+    pty = Pty()
+    rng = random.Random(5)
+    latencies = []
+    for _ in range(commands):
+        pty.drain()
+        start = time.perf_counter()
+        os.write(pty.slave, b"s 10 20\r")
+        select.select([pty.master], [], [], 1.0)
+        os.read(pty.master, 64)
+        latencies.append((time.perf_counter() - start) * 1000)
+        time.sleep(rng.uniform(0.001, 0.005))
+    pty.close()
+    return {
+        "bench": "pty_floor",
+        "commands": commands,
+        "p50_ms": round(statistics.median(latencies), 3),
+        "p99_ms": round(percentile(latencies, 99), 3),
+        "max_ms": round(max(latencies), 3),
+    }
+
+
+@contextmanager
+def fifo(priority: int = 10) -> Iterator[bool]:
+    """Run the calling thread (and the threads it starts) under SCHED_FIFO if the OS allows it."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError):
+        yield False
+        return
+    try:
+        yield True
+    finally:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+
+
+def under_fifo(bench: Any) -> dict[str, Any]:
+    with fifo() as allowed:
+        if not allowed:
+            return {"bench": "sched_fifo", "skipped": "SCHED_FIFO not permitted (needs CAP_SYS_NICE)"}
+        result = bench()
+    result["bench"] += "_sched_fifo"
+    return result
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     data = b"".join(firmware_loops(5_000 if quick else 60_000))  # 0.3 or 3.6 MB
     results = []
     for bench in (
         lambda: bench_parser(data, 2 if quick else 5),
         lambda: bench_end_to_end(data),
+        lambda: bench_pty_floor(200 if quick else 2000),
         lambda: bench_latency(200 if quick else 2000, streaming=False),
         lambda: bench_latency(200 if quick else 2000, streaming=True),
+        lambda: under_fifo(lambda: bench_pty_floor(200 if quick else 2000)),
+        lambda: under_fifo(lambda: bench_latency(200 if quick else 2000, streaming=False)),
+        lambda: under_fifo(lambda: bench_latency(200 if quick else 2000, streaming=True)),
     ):
         result = bench()
         print(json.dumps(result), flush=True)
