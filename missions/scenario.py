@@ -455,10 +455,11 @@ def _partial(expected: dict[str, Any], actual: dict[str, Any]) -> bool:
 
 
 def _matches(matcher: dict[str, Any], event: dict[str, Any]) -> bool:
-    """A matcher names event fields; `state: X` means entering state X."""
+    """A matcher names event fields; `state: X` means entering state X, named as in `states:`
+    (its full path, `main/entertainer/goodbye`) or as its machine names it (`goodbye`)."""
     for key, value in matcher.items():
         if key == "state":
-            if event["ev"] != "transition" or event["dest"] != value:
+            if event["ev"] != "transition" or value not in (event["dest"], f"{event['machine']}/{event['dest']}"):
                 return False
         elif event.get(key) != value:
             return False
