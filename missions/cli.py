@@ -591,7 +591,6 @@ def teleop(
         raise _fail(f"error: robot {robot!r} has no drive", 2)
     state = Teleop(profile.base.max_linear, profile.base.max_angular, linear_step, angular_step)
     interactive = sys.stdin.isatty() and sys.stdout.isatty()
-    console.print(HELP, highlight=False)
 
     def show(line: str) -> None:
         if interactive:
@@ -603,6 +602,7 @@ def teleop(
     try:
         if interactive:
             with TerminalKeys.opened() as keys:
+                console.print(HELP, highlight=False)  # once keys are read one by one: none typed is lost
                 run_teleop(
                     devices["drive"],
                     keys,
@@ -613,6 +613,7 @@ def teleop(
                     show=show,
                 )
         else:
+            console.print(HELP, highlight=False)
             run_teleop(
                 devices["drive"],
                 StreamKeys(sys.stdin),

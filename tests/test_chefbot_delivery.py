@@ -55,7 +55,7 @@ def simulated(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
 
 def test_three_orders_to_three_tables_and_it_ends_at_the_dock(simulated: RunResult) -> None:
     summary = simulated.summary
-    assert simulated.outcome == "success", simulated.reason
+    assert simulated.outcome == "docked", simulated.reason
     assert summary["counters"]["orders_received"] == 3
     assert summary["counters"]["delivered"] == 3
     assert summary["counters"]["failed"] == []
@@ -75,7 +75,7 @@ def test_battery_low_mid_delivery_in_the_simulator(tmp_path: Path) -> None:
     charge the robot starts with, so it is crossed on the first trip."""
     result = run(MISSION, out=tmp_path / "run", blackboard={"battery_low_pct": 99.6})
     counters = result.summary["counters"]
-    assert result.outcome == "success", result.reason
+    assert result.outcome == "docked", result.reason
     assert counters["delivered"] == 1  # the soup on board is served...
     assert [f["table"] for f in counters["failed"]] == ["table_4", "table_6"]  # ...the rest are not
     assert {f["reason"] for f in counters["failed"]} == {"battery low: the robot docked"}
@@ -118,7 +118,7 @@ def test_orders_from_the_command_line_join_the_queue_in_arrival_order(tmp_path: 
     assert said["second"].exit_code == 0, said["second"].output
     assert said["unknown"].exit_code == 2 and "unknown table 'table_9'" in said["unknown"].output
     assert said["empty"].exit_code == 2 and "needs an item" in said["empty"].output
-    assert result.outcome == "success", result.reason
+    assert result.outcome == "docked", result.reason
     assert result.summary["counters"]["orders_received"] == 4
     assert result.summary["counters"]["delivered"] == 4
     assert served(result) == ["table_2", "table_3", "table_5", "table_1"]
@@ -166,7 +166,7 @@ def test_over_the_emulated_board_the_mission_survives_an_unplug(
     summary = result.summary
     serial, board = summary["emulator"]["serial"], summary["emulator"]["board"]
     assert unplugged, "the drive to the table never started"
-    assert result.outcome == "success", result.reason
+    assert result.outcome == "docked", result.reason
     assert summary["counters"]["delivered"] == 1 and summary["counters"]["failed"] == []
     assert serial["disconnects"] >= 1 and serial["connects"] >= 2  # the loss, reported, and the return
     assert board["unplugs"] >= 1 and board["plugs"] >= 2
