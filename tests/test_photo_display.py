@@ -165,3 +165,32 @@ def test_an_unknown_default_layout_fails_at_once(harness: Harness) -> None:
     harness.interfaces["display"] = SimDisplay(harness.clock)
     outcome, _ = harness.run(Display(), default="Layout_7")
     assert outcome.name == "failure" and "unknown default layout 'Layout_7'" in outcome.reason
+
+
+# -- a real camera: OpenCV's VideoCapture on a video file ----------------------------------------
+
+
+def test_a_photo_from_a_real_video_capture(harness: Harness, tmp_path: Path) -> None:
+    from robots.drivers.video_camera import VideoCaptureCamera, wait_for_frame
+
+    video = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
+    for seed in range(5):
+        writer.write(picture(seed))
+    writer.release()
+    with VideoCaptureCamera(str(video), loop=True) as camera:
+        assert (camera.info.width, camera.info.height) == (64, 48)
+        first = wait_for_frame(camera)
+        assert first is not None and first.shape == (48, 64, 3)
+        harness.interfaces["camera"] = camera
+        outcome, _ = harness.run(Photo())
+    assert outcome.name == "success", outcome.reason
+    saved = cv2.imread(str(tmp_path / outcome.outputs["photo"]))
+    assert min(np.abs(saved.astype(int) - picture(seed)).mean() for seed in range(5)) < 6  # one of the clip's
+
+
+def test_a_camera_that_cannot_be_opened_says_which() -> None:
+    from robots.drivers.video_camera import VideoCaptureCamera
+
+    with pytest.raises(ConnectionError, match="cannot open the camera '/nonexistent/cam.avi'"):
+        VideoCaptureCamera("/nonexistent/cam.avi")
