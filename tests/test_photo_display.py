@@ -192,5 +192,5 @@ def test_a_photo_from_a_real_video_capture(harness: Harness, tmp_path: Path) -> 
 def test_a_camera_that_cannot_be_opened_says_which() -> None:
     from robots.drivers.video_camera import VideoCaptureCamera
 
-    with pytest.raises(ConnectionError, match="cannot open the camera '/nonexistent/cam.avi'"):
+    with pytest.raises(ConnectionError, match=r"cannot open the camera '/nonexistent/cam\.avi'"):
         VideoCaptureCamera("/nonexistent/cam.avi")
