@@ -249,8 +249,13 @@ def photos_section(folder: Path, subfolder: str = "photos", width: int = 200) ->
     states = _upload_states(folder)
     e = html.escape
     cells = []
-    for photo in photos[:MAX_PHOTOS]:
-        data = photo.read_bytes()
+    uploaded = 0
+    for index, photo in enumerate(photos):
+        data = photo.read_bytes()  # once a photo: its hash, and its thumbnail for the first ones
+        state = states.get(hashlib.sha256(data).hexdigest(), "not queued")
+        uploaded += state == "uploaded"
+        if index >= MAX_PHOTOS:
+            continue
         image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
         if image is None:
             cells.append(f"<figure><figcaption>{e(photo.name)}: not a readable JPEG</figcaption></figure>")
@@ -261,7 +266,6 @@ def photos_section(folder: Path, subfolder: str = "photos", width: int = 200) ->
             meta = json.loads(photo.with_suffix(".json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             meta = {}
-        state = states.get(hashlib.sha256(data).hexdigest(), "not queued")
         pose = meta.get("pose")
         where = f" at ({pose[0]:.1f}, {pose[1]:.1f})" if isinstance(pose, list) and len(pose) >= 2 else ""
         caption = f"{photo.name}: t {meta.get('t', '?')} s{where}, crowd {meta.get('crowd_id', '?')}; upload: {state}"
@@ -270,7 +274,6 @@ def photos_section(folder: Path, subfolder: str = "photos", width: int = 200) ->
             f"<figcaption>{e(caption)}</figcaption></figure>"
         )
     more = f"<p>{len(photos) - MAX_PHOTOS} more photos are in {subfolder}/.</p>" if len(photos) > MAX_PHOTOS else ""
-    uploaded = sum(1 for p in photos if states.get(hashlib.sha256(p.read_bytes()).hexdigest()) == "uploaded")
     return (
         f'<h2 id="photos">Photos</h2>\n<p>{len(photos)} taken, {uploaded} uploaded to the gallery.</p>'
         f'<div class="photos">{"".join(cells)}</div>{more}'

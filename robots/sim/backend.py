@@ -70,7 +70,7 @@ class SimBackend:
         clock: Clock,
         people: int = 0,
         gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
-        voices: dict[str, float] | None = None,
+        voices: dict[str, Any] | None = None,
     ) -> None:
         self.clock = clock
         self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)

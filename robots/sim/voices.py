@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import wave
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cache
@@ -112,6 +113,16 @@ class Voices:
                 f"command weights are non-negative numbers for {', '.join(sorted(commands))}; "
                 f"got {self.command_weights}"
             )
+        self._commands = [c for c in self.library if c.command]
+        self._chat = [c for c in self.library if not c.command]
+        self._command_p: np.ndarray | None = None  # None: every command clip alike
+        if self.command_weights:
+            per_command = Counter(c.command for c in self._commands)
+            weights = np.array(
+                [self.command_weights.get(c.command or "", 0.0) / per_command[c.command] for c in self._commands]
+            )
+            if weights.sum() > 0:
+                self._command_p = weights / weights.sum()
         self._next = float(self.rng.exponential(self.every))
 
     @classmethod
@@ -155,8 +166,7 @@ class Voices:
         if speaker is None:
             self._next = now + 1.0  # nobody near: look again in a second
             return
-        commands = [c for c in self.library if c.command]
-        chat = [c for c in self.library if not c.command]
+        commands, chat = self._commands, self._chat
         if commands and (not chat or self.rng.random() < self.command_share):
             chosen = self._weighted(commands)
         else:
@@ -166,17 +176,9 @@ class Voices:
 
     def _weighted(self, commands: list[Clip]) -> Clip:
         """A command clip: each command as likely as its weight says, its clips equally likely."""
-        if not self.command_weights:
+        if self._command_p is None:
             return commands[int(self.rng.integers(len(commands)))]
-        per_command: dict[str, int] = {}
-        for clip in commands:
-            per_command[clip.command or ""] = per_command.get(clip.command or "", 0) + 1
-        weights = np.array(
-            [self.command_weights.get(c.command or "", 0.0) / per_command[c.command or ""] for c in commands]
-        )
-        if weights.sum() <= 0:
-            return commands[int(self.rng.integers(len(commands)))]
-        return commands[int(self.rng.choice(len(commands), p=weights / weights.sum()))]
+        return commands[int(self.rng.choice(len(commands), p=self._command_p))]
 
     def _answer(self, now: float) -> None:
         """A seated guest answers YES to a question the robot asked at their table."""
