@@ -30,6 +30,9 @@ class Gathering(BaseModel):
     stay: float = Field(default=120.0, gt=0, description="seconds they stay once all are there")
 
 
+VOICE_COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")  # what the simulator's voice clips say
+
+
 class VoiceSettings(BaseModel):
     """How the simulator's people speak to the robot (robots/sim/voices.py)."""
 
@@ -41,6 +44,16 @@ class VoiceSettings(BaseModel):
     command_weights: dict[str, float] = Field(
         default_factory=dict, description="how often each command is said, relatively (default: all alike)"
     )
+
+    @field_validator("command_weights")
+    @classmethod
+    def _commands(cls, value: dict[str, float]) -> dict[str, float]:
+        unknown = sorted(set(value) - set(VOICE_COMMANDS))
+        if unknown:
+            raise ValueError(f"no such command {', '.join(unknown)} (commands: {', '.join(VOICE_COMMANDS)})")
+        if any(weight < 0 for weight in value.values()):
+            raise ValueError("a command's weight must not be negative")
+        return value
 
 
 class KeySpec(BaseModel):

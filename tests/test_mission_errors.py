@@ -284,3 +284,19 @@ def test_gatherings_are_checked_against_the_map_and_the_people(tmp_path: Path) -
         "m.yaml:5:1: error: the gatherings need 5 people; `people:` is 3",
         "m.yaml:6:6: error: the map has no place 'lobby'",
     ]
+
+
+def test_voice_settings_are_checked_before_anything_runs(tmp_path: Path) -> None:
+    found = problems(
+        tmp_path,
+        """\
+        robot: peoplebot
+        world: museum
+        voices: {every: 0, command_weights: {PHOTOS: 2}}
+        trees:
+          main:
+            wait: {duration: 1}
+    """,
+    )
+    assert any(p.startswith("m.yaml:3:") and "voices.every" in p for p in found), found
+    assert any(p.startswith("m.yaml:3:") and "no such command PHOTOS" in p for p in found), found
