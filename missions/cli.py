@@ -273,7 +273,9 @@ def test_scenarios(
     coverage: bool = typer.Option(False, "--coverage", help="print coverage per mission and write it"),
     coverage_file: Path = typer.Option(Path("coverage.json"), help="where --coverage writes its figures"),
 ) -> None:
-    """Run scenario tests without pytest; a failure prints its readable report. Exit 1 if any fails."""
+    """Run scenario tests without pytest; a failure prints its readable report and keeps its run
+    folder (the report names it). Exit 1 if any fails."""
+    import shutil
     import tempfile
 
     from missions.scenario import load_scenario, run_scenario
@@ -294,9 +296,11 @@ def test_scenarios(
 
     session = Session()
     for path in files:
-        result = run_scenario(load_scenario(path), Path(tempfile.mkdtemp(prefix=f"botstage-{path.stem}-")))
+        folder = Path(tempfile.mkdtemp(prefix=f"botstage-{path.stem}-"))
+        result = run_scenario(load_scenario(path), folder)
         session.add(result)
         if result.passed:
+            shutil.rmtree(folder, ignore_errors=True)  # a failure's folder stays: its report names it
             console.print(f"[green]PASS[/] {path}", highlight=False, soft_wrap=True)
         else:
             failed += 1

@@ -135,9 +135,15 @@ def test_partial_call_matches_and_counts(tmp_path: Path) -> None:
     ]
 
 
-def test_botstage_test_runs_a_suite_and_fails_on_a_bad_scenario(tmp_path: Path) -> None:
+def test_botstage_test_runs_a_suite_and_fails_on_a_bad_scenario(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    runs = tmp_path / "tmp"
+    runs.mkdir()
+    monkeypatch.setenv("TMPDIR", str(runs))  # where `botstage test` puts its run folders
     good = botstage("test", "missions/scenarios/hello")
     assert good.returncode == 0 and "7 passed, 0 failed" in good.stdout
+    assert list(runs.iterdir()) == []  # passed scenarios leave nothing behind
     bad = tmp_path / "scenarios"
     bad.mkdir()
     (bad / "wrong.yaml").write_text(f"mission: {HELLO}\nexpect: {{outcome: stopped}}\n")
@@ -145,6 +151,8 @@ def test_botstage_test_runs_a_suite_and_fails_on_a_bad_scenario(tmp_path: Path) 
     assert result.returncode == 1
     assert "0 passed, 1 failed" in result.stdout
     assert "outcome: expected 'stopped', got 'done'" in result.stderr
+    (kept,) = runs.iterdir()  # the failure's run folder stays for a look, and its report names it
+    assert f"run folder: {kept}" in result.stderr and (kept / "trace.jsonl").is_file()
 
 
 def test_a_recorded_run_replays_and_catches_a_change_to_the_tree(tmp_path: Path) -> None:
