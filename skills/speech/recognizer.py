@@ -102,7 +102,9 @@ an acoustic mismatch, not a threshold. Tried and dropped:
 - Decoder settings: ``topn`` 8 (Gaussians per codebook) 88 / 87 / 85 at 18 / 17 / 19, 16 the
   same at 0.1 real-time factor; wider beams, ``wip`` 0.2, coverage 0.6: within a point;
   language weight 8 90 / 88 / 87 at 22 / 23 / 23, 10 92 / 89 / 88 at 25 / 30 / 28 (the
-  command-mass trade-off again). The PyPI wheel and Debian's pocketsphinx-en-us ship the same
+  command-mass trade-off again); the second (flat) pass and the lattice search, which changed
+  no decision in the first round, now 93 / 89 / 87 at 24 / 26 / 25, the same trade-off;
+  ``fillprob`` 0.001, ``silprob`` 0.1: no change. The PyPI wheel and Debian's pocketsphinx-en-us ship the same
   PTM model, and no larger English acoustic model is packaged on either.
 
 **Free** mode decodes with the full en-us language model (any English; slower, about 0.2-0.3
