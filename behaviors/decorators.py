@@ -17,17 +17,17 @@ from behaviors.blackboard import BlackboardError
 from skills.expression import EvaluationError, Expression
 
 if TYPE_CHECKING:
-    from behaviors.engine import Engine
+    from behaviors.runtime import Runtime
 
 
 class _ReasonedDecorator(py_trees.decorators.Decorator):
     """A decorator that can fail on its own, halting its child and saying why."""
 
-    engine: Engine
+    runtime: Runtime
 
     def _fail(self, feedback: str, halt_reason: str) -> Iterator[py_trees.behaviour.Behaviour]:
         self.feedback_message = feedback
-        with self.engine.halting(halt_reason):
+        with self.runtime.halting(halt_reason):
             self.stop(Status.FAILURE)
         yield self
 
@@ -39,17 +39,17 @@ class _ReasonedDecorator(py_trees.decorators.Decorator):
 class ClockTimeout(_ReasonedDecorator):
     """Fail, halting the child, when it has run for ``duration`` seconds of mission time."""
 
-    def __init__(self, name: str, child: py_trees.behaviour.Behaviour, duration: float, engine: Engine) -> None:
+    def __init__(self, name: str, child: py_trees.behaviour.Behaviour, duration: float, runtime: Runtime) -> None:
         super().__init__(name=name, child=child)
         self.duration = duration
-        self.engine = engine
+        self.runtime = runtime
         self._deadline = 0.0
 
     def initialise(self) -> None:
-        self._deadline = self.engine.clock.now() + self.duration - 1e-9
+        self._deadline = self.runtime.clock.now() + self.duration - 1e-9
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
-        if self.status is Status.RUNNING and self.engine.clock.now() >= self._deadline:
+        if self.status is Status.RUNNING and self.runtime.clock.now() >= self._deadline:
             why = f"timed out after {self.duration:g} s"
             yield from self._fail(why, f"timeout of {self.path!r} after {self.duration:g} s")
             return
@@ -70,7 +70,7 @@ class Guard(_ReasonedDecorator):
         child: py_trees.behaviour.Behaviour,
         condition: Expression,
         mode: str,
-        engine: Engine,
+        runtime: Runtime,
         path: str,
     ) -> None:
         super().__init__(name=name, child=child)
@@ -78,9 +78,9 @@ class Guard(_ReasonedDecorator):
             raise ValueError(f"guard mode must be 'while' or 'if', got {mode!r}")
         self.condition = condition
         self.mode = mode
-        self.engine = engine
+        self.runtime = runtime
         self.path = path
-        self.access = engine.blackboard.client(path, reads=condition.keys)
+        self.access = runtime.blackboard.client(path, reads=condition.keys)
 
     def tick(self) -> Iterator[py_trees.behaviour.Behaviour]:
         if self.mode == "while" or self.status is not Status.RUNNING:

@@ -16,6 +16,7 @@ from py_trees.common import Status
 
 from behaviors.blackboard import Blackboard
 from behaviors.builder import Builder
+from behaviors.kinds import NodeKinds
 from behaviors.trace import Trace
 from robots.clock import Clock, SimClock
 from skills.registry import Registry
@@ -23,6 +24,9 @@ from skills.workers import Workers
 
 
 class Engine:
+    """The run's clock, blackboard, trace, workers and devices (a ``Runtime`` for its nodes), and
+    the tick loop over the root it is given."""
+
     def __init__(
         self,
         *,
@@ -32,11 +36,13 @@ class Engine:
         interfaces: Mapping[str, Any] | None = None,
         trace: Trace | None = None,
         workers: Workers | None = None,
+        kinds: NodeKinds | None = None,
     ) -> None:
         self.clock: Clock = clock or SimClock()
         self.trace = trace or Trace(self.clock)
         self.blackboard = Blackboard(self.trace)
         self.registry = registry or Registry.default()
+        self.kinds = kinds or NodeKinds.default()
         self.workers = workers or Workers()
         self.interfaces = dict(interfaces or {})
         self.seed = seed
@@ -54,7 +60,7 @@ class Engine:
         machines: Mapping[str, Any] | None = None,
         skill_params: Mapping[str, Mapping[str, Any]] | None = None,
     ) -> Builder:
-        return Builder(self, trees, machines, skill_params)
+        return Builder(self, trees, machines, skill_params, kinds=self.kinds)
 
     def set_root(self, root: py_trees.behaviour.Behaviour) -> None:
         self.root = root

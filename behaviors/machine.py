@@ -1,4 +1,4 @@
-"""Hierarchical state machines on ``transitions``' HierarchicalMachine, ticked by the engine.
+"""Hierarchical state machines on ``transitions``' HierarchicalMachine, ticked by the runtime.
 
 Each state runs a skill, a tree or a nested machine; the outcome it ends with names the
 transition (SMACH style). A transition may target a sibling state or one of the machine's own
@@ -27,7 +27,7 @@ from skills.base import Outcome
 from skills.expression import EvaluationError, Expression, compile_expression
 
 if TYPE_CHECKING:
-    from behaviors.engine import Engine
+    from behaviors.runtime import Runtime
 
 IDLE = "__idle__"
 START = "__start__"
@@ -148,14 +148,14 @@ def failure_reason(node: py_trees.behaviour.Behaviour) -> str:
 
 
 class MachineBehaviour(py_trees.behaviour.Behaviour):
-    def __init__(self, name: str, path: str, plan: MachinePlan, engine: Engine) -> None:
+    def __init__(self, name: str, path: str, plan: MachinePlan, runtime: Runtime) -> None:
         super().__init__(name)
         self.path = path
         self.plan = plan
-        self.engine = engine
+        self.runtime = runtime
         self.outcome: Outcome | None = None
         self.transitions = 0  # taken since the machine was built, for reports and benchmarks
-        self.access = engine.blackboard.client(path, reads=plan.reads, writes=plan.writes)
+        self.access = runtime.blackboard.client(path, reads=plan.reads, writes=plan.writes)
         self.model = _Model()
         self._entered_at: dict[str, float] = {}
         self._error: str | None = None
@@ -226,7 +226,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
     # -- transitions callbacks --------------------------------------------------------------
 
     def _entered(self, path: str) -> None:
-        self._entered_at[path] = self.engine.clock.now()
+        self._entered_at[path] = self.runtime.clock.now()
         self._run_actions(path, self.plan.states[path].on_enter)
 
     def _exited(self, path: str) -> None:
@@ -262,7 +262,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                 if action.kind == "set":
                     self.access.set(action.key, action.value)
                 else:
-                    self.engine.log_sink(f"{self.path}/{path}", "info", str(action.value))
+                    self.runtime.log_sink(f"{self.path}/{path}", "info", str(action.value))
             except BlackboardError as exc:
                 self._error = self._error or f"action of state {path!r}: {exc}"
 
@@ -286,12 +286,12 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
         if new_status is Status.INVALID:
             self._halt_content()
             if self.outcome is None and self.model.state != IDLE:
-                self._fire(HALT, "halt", self.engine.halt_reason)
+                self._fire(HALT, "halt", self.runtime.halt_reason)
 
     def _fail(self) -> None:
         """End with failure: stop what runs in the active state and leave it (exit actions run)."""
         reason = self._error or "failed"
-        with self.engine.halting(reason):
+        with self.runtime.halting(reason):
             self._halt_content()
             self._fire(HALT, "halt", reason)
         self._end(Outcome("failure", reason))
@@ -341,21 +341,21 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                     reason = f"preempted: {condition.source!r} holds"
                     if self._blocked(targets, reason):
                         return
-                    with self.engine.halting(reason):
+                    with self.runtime.halting(reason):
                         self._halt_content()
                         self._fire(f"{scope or '/'}!preempt{index}", f"preempt {condition.source!r}", reason)
                     self._settle(reason)
                     return
         if not self._timed:
             return
-        now = self.engine.clock.now()
+        now = self.runtime.clock.now()
         parts = state.split("/")
         for depth in range(1, len(parts) + 1):
             path = "/".join(parts[:depth])
             timeout = self.plan.states[path].timeout
             if timeout is not None and now - self._entered_at[path] >= timeout - 1e-9:
                 reason = f"state {path!r} timed out after {timeout:g} s"
-                with self.engine.halting(reason):
+                with self.runtime.halting(reason):
                     self._on_outcome(path, "timeout", reason)
                 return
 
@@ -396,7 +396,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                 if lands and len(target.chain) > 1:
                     label = " > ".join(target.chain)
                     break
-            self.engine.trace.emit(
+            self.runtime.trace.emit(
                 "transition",
                 self.path,
                 "" if before == IDLE else before,

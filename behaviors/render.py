@@ -18,9 +18,10 @@ from typing import Any
 
 import py_trees
 
-from behaviors.decorators import ClockTimeout, Guard
+from behaviors.kinds import Described
+from behaviors.kinds.leaves import describe_skill
 from behaviors.machine import MachineBehaviour, MachinePlan
-from behaviors.skill_behaviour import KeyRef, SkillBehaviour
+from behaviors.skill_behaviour import SkillBehaviour
 
 TREE_FORMATS = ("ascii", "unicode", "dot", "svg", "png", "mermaid", "json")
 MACHINE_FORMATS = ("ascii", "dot", "svg", "png", "mermaid")
@@ -87,63 +88,24 @@ class Item:
     machine: str = ""  # for machine levels: the path of the machine they belong to
 
 
-def _value(value: Any) -> str:
-    if isinstance(value, KeyRef):
-        return str(value)
-    text = json.dumps(value) if isinstance(value, str | int | float | bool | type(None) | list | dict) else repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
-def _skill(node: SkillBehaviour) -> Item:
-    skill = node.skill
-    plain = node.name == skill.name or (node.name == "condition" and skill.kind == "condition")
-    title = skill.name if plain else f"{node.name}: {skill.name}"
-    details = [f"{port}={_value(value)}" for port, value in node.inputs.items()]
-    details += [f"{port} → {{{key}}}" for port, key in node.outputs.items()]
-    if node.success_on != frozenset(skill.success_outcomes):
-        details.append("success on " + ", ".join(sorted(node.success_on)))
-    return Item(node.path, "condition" if skill.kind == "condition" else "skill", title, details)
-
-
 def describe(node: py_trees.behaviour.Behaviour) -> Item:
+    """What a built node looks like in pictures, as its kind describes it (machines as clusters)."""
     path = getattr(node, "path", node.name)
-    if isinstance(node, SkillBehaviour):
-        return _skill(node)
     if isinstance(node, MachineBehaviour):
         return describe_machine(node.plan, path, node.name)
-    children = [describe(child) for child in node.children]
-    decorators = py_trees.decorators
-    if isinstance(node, py_trees.composites.Sequence):
-        title = "sequence" if node.memory else "reactive sequence"
-    elif isinstance(node, py_trees.composites.Selector):
-        title = "selector" if node.memory else "reactive selector"
-    elif isinstance(node, py_trees.composites.Parallel):
-        policy = type(node.policy).__name__
-        title = {"SuccessOnAll": "parallel (all)", "SuccessOnOne": "parallel (one)"}.get(policy, "parallel (selected)")
-    elif isinstance(node, ClockTimeout):
-        title = f"timeout {node.duration:g} s"
-    elif isinstance(node, Guard):
-        title = f"{node.mode} {node.condition.source}"
-    elif isinstance(node, decorators.Retry):
-        title = f"retry ×{node.num_failures}"
-    elif isinstance(node, decorators.Repeat):
-        title = "repeat forever" if node.num_success == -1 else f"repeat ×{node.num_success}"
-    elif isinstance(node, decorators.OneShot):
-        title = "one shot"
-    elif isinstance(node, decorators.Inverter):
-        title = "inverter"
-    elif isinstance(node, decorators.FailureIsSuccess):
-        title = "force success"
-    elif isinstance(node, decorators.SuccessIsFailure):
-        title = "force failure"
-    else:
-        title = type(node).__name__
-    kind = "decorator" if isinstance(node, decorators.Decorator) else title.split()[-1].strip("()")
-    if isinstance(node, py_trees.composites.Composite):
-        kind = title.split()[-1] if "parallel" not in title else "parallel"
+    kind = getattr(node, "node_kind", None)
+    if kind is not None:
+        described = kind.describe(node)
+    elif isinstance(node, SkillBehaviour):  # a machine state's skill
+        described = describe_skill(node)
+    else:  # a behaviour made by hand, outside any kind
+        described = Described(type(node).__name__, "decorator" if node.children else "skill")
+    if described.shape in ("skill", "condition"):
+        return Item(path, described.shape, described.title, list(described.details))
+    title = described.title
     if node.name and node.name not in title.replace(" ", "_") and not title.startswith(node.name):
         title = f"{node.name}: {title}"
-    return Item(path, kind, title, [], children)
+    return Item(path, described.shape, title, list(described.details), [describe(child) for child in node.children])
 
 
 def describe_machine(plan: MachinePlan, path: str, name: str) -> Item:

@@ -27,7 +27,7 @@ from skills.execution import SkillExecution
 from skills.expression import ExpressionError, compile_expression
 
 if TYPE_CHECKING:
-    from behaviors.engine import Engine
+    from behaviors.runtime import Runtime
 
 _NO_OUTPUTS: dict[str, Any] = {}  # shared by every trace event without outputs; never mutated
 
@@ -69,7 +69,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
         name: str,
         path: str,
         skill: Skill,
-        engine: Engine,
+        runtime: Runtime,
         inputs: Mapping[str, Any] | None = None,
         outputs: Mapping[str, str] | None = None,
         success_on: frozenset[str] = frozenset({"success"}),
@@ -77,21 +77,21 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
         super().__init__(name)
         self.path = path
         self.skill = skill
-        self.engine = engine
+        self.runtime = runtime
         self.inputs = dict(inputs or {})
         self.outputs = dict(outputs or {})
         self.success_on = success_on
         self.outcome: Outcome | None = None
         reads, writes = access_for(type(skill), self.inputs, self.outputs)
-        self.access = engine.blackboard.client(path, reads=reads, writes=writes)
+        self.access = runtime.blackboard.client(path, reads=reads, writes=writes)
         ctx = SkillContext(
-            clock=engine.clock,
+            clock=runtime.clock,
             params=skill.params,
-            logger=SkillLogger(path, sink=engine.log_sink),
+            logger=SkillLogger(path, sink=runtime.log_sink),
             blackboard=self.access,
-            workers=engine.workers,
-            interfaces=engine.interfaces,
-            rng=random.Random(f"{engine.seed}:{path}"),
+            workers=runtime.workers,
+            interfaces=runtime.interfaces,
+            rng=random.Random(f"{runtime.seed}:{path}"),
             node=path,
         )
         self.execution = SkillExecution(skill, ctx)
@@ -120,7 +120,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
         self.terminate(new_status)
         self.status = new_status
         if halted:
-            self.engine.note_halt(self)
+            self.runtime.note_halt(self)
 
     def initialise(self) -> None:
         # An action that failed at once on its last try is not let to preempt: it would cancel
@@ -136,7 +136,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
             self._first = Outcome(FAILURE, str(exc))
             return
         shown = self._shown_inputs if inputs is self.inputs else jsonable(inputs)
-        self.engine.trace.emit("skill_start", self.path, self.skill.name, shown)
+        self.runtime.trace.emit("skill_start", self.path, self.skill.name, shown)
         self._first = self.execution.start(inputs)
 
     def update(self) -> Status:
@@ -154,10 +154,10 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
     def terminate(self, new_status: Status) -> None:
         if new_status is Status.INVALID and self.execution.running:
             problem = self.execution.cancel()
-            reason = self.engine.halt_reason
+            reason = self.runtime.halt_reason
             if problem:
                 reason = f"{reason}; {problem}"
-            self.engine.trace.emit("skill_cancel", self.path, self.skill.name, reason)
+            self.runtime.trace.emit("skill_cancel", self.path, self.skill.name, reason)
             self.feedback_message = f"cancelled: {reason}"
 
     # -- internals --------------------------------------------------------------------------
@@ -176,7 +176,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
                 outcome = Outcome(FAILURE, f"could not write output {port!r}: {exc}", outcome.outputs)
         self.outcome = outcome
         self.feedback_message = outcome.reason
-        self.engine.trace.emit(
+        self.runtime.trace.emit(
             "skill_outcome",
             self.path,
             self.skill.name,
@@ -196,7 +196,7 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
                 continue
             children = selector.children
             if children.index(current) > children.index(branch):
-                with self.engine.halting(f"preempted by higher-priority {self.path!r}"):
+                with self.runtime.halting(f"preempted by higher-priority {self.path!r}"):
                     current.stop(Status.INVALID)
 
 

@@ -13,11 +13,11 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator
 
+from behaviors.kinds import NodeKinds
+from behaviors.kinds.base import CONDITION_SCHEMA, MACHINE_REF, NODE_REF, merge_property
 from skills.registry import Registry
 
 SCHEMA_ID = "https://botstage.dev/schema/mission.json"
-NODE_REF = {"$ref": "#/$defs/node"}
-MACHINE_REF = {"$ref": "#/$defs/machine"}
 
 
 class Gathering(BaseModel):
@@ -219,46 +219,23 @@ def _swap_marks(value: Any) -> Any:
     return value
 
 
-def json_schema(registry: Registry | None = None) -> dict[str, Any]:
+def node_properties(registry: Registry, kinds: NodeKinds) -> dict[str, Any]:
+    """The properties of a node object: every registered kind's, merged where options share a name."""
+    properties: dict[str, Any] = {"name": {"type": "string"}}
+    for name in kinds:
+        for prop, schema in kinds.get(name).schema_properties(registry).items():
+            properties[prop] = merge_property(properties[prop], schema) if prop in properties else schema
+    return properties
+
+
+def json_schema(registry: Registry | None = None, kinds: NodeKinds | None = None) -> dict[str, Any]:
+    """The schema of mission files for these skills and node kinds (default: all installed)."""
     registry = registry or Registry.default()
     schema = _swap_marks(Mission.model_json_schema())
     schema["$id"] = SCHEMA_ID
     defs = schema.setdefault("$defs", {})
-    condition = {"type": "string", "description": "a condition, e.g. battery_pct > 20 and not estop"}
-    children = {"type": "array", "items": NODE_REF}
-    node_props: dict[str, Any] = {
-        "name": {"type": "string"},
-        "sequence": children,
-        "selector": children,
-        "fallback": children,
-        "reactive_sequence": children,
-        "reactive_selector": children,
-        "reactive_fallback": children,
-        "memory": {"type": "boolean"},
-        "parallel": children,
-        "policy": {"enum": ["success_on_all", "success_on_one", "success_on_selected", "on_success", "on_completion"]},
-        "synchronise": {"type": "boolean"},
-        "selected": {"type": "array", "items": {"type": "string"}},
-        "inverter": NODE_REF,
-        "force_success": NODE_REF,
-        "force_failure": NODE_REF,
-        "one_shot": NODE_REF,
-        "retry": {"type": "integer", "minimum": 1},
-        "repeat": {"anyOf": [{"type": "integer", "minimum": 1}, {"const": "forever"}]},
-        "timeout": {"type": "number", "exclusiveMinimum": 0},
-        "while": condition,
-        "if": condition,
-        "condition": condition,
-        "child": NODE_REF,
-        "skill": {"enum": list(registry)},
-        "inputs": {"type": "object"},
-        "outputs": {"type": "object", "additionalProperties": {"type": "string"}},
-        "success_on": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]},
-        "params": {"type": "object"},
-        "subtree": {"type": "string"},
-        "remap": {"type": "object", "additionalProperties": {"type": "string"}},
-        "machine": {"anyOf": [{"type": "string"}, MACHINE_REF]},
-    }
+    condition = CONDITION_SCHEMA
+    node_props = node_properties(registry, kinds or NodeKinds.default())
     for name in registry:
         info = registry.get(name).describe()
         node_props[name] = {

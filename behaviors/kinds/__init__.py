@@ -1,0 +1,26 @@
+"""Node kinds: every composite, decorator and leaf a tree can hold, registered by name."""
+
+from behaviors.kinds.base import (
+    CompositeKind,
+    DecoratorKind,
+    Described,
+    KindOptions,
+    LeafKind,
+    NodeBuild,
+    NodeKind,
+    NoOptions,
+)
+from behaviors.kinds.registry import ENTRY_POINT_GROUP, NodeKinds
+
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "CompositeKind",
+    "DecoratorKind",
+    "Described",
+    "KindOptions",
+    "LeafKind",
+    "NoOptions",
+    "NodeBuild",
+    "NodeKind",
+    "NodeKinds",
+]
