@@ -12,8 +12,10 @@ answers it) are one line.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 ROLES = {"said": "robot", "heard": "visitor"}  # output port -> who spoke
 FILE = "transcript.jsonl"
@@ -28,34 +30,48 @@ class Utterance:
     skill: str
 
 
+class Transcriber:
+    """Who said what, from trace events as they come (a run's observer feeds it; a file can too)."""
+
+    def __init__(self) -> None:
+        self.started: dict[str, float] = {}
+        self.said: list[Utterance] = []
+
+    def add(self, event: Mapping[str, Any]) -> None:
+        kind = event["ev"]
+        if kind == "skill_start":
+            self.started[event["node"]] = event["t"]
+        elif kind == "skill_outcome":
+            outputs = event["outputs"] or {}
+            began = self.started.pop(event["node"], event["t"])
+            for port, who in ROLES.items():
+                text = outputs.get(port)
+                if isinstance(text, str) and text.strip():
+                    t = began if who == "robot" else event["t"]
+                    self.said.append(Utterance(t, who, text, event["node"], event["skill"]))
+
+    def lines(self) -> list[Utterance]:
+        lines = sorted(self.said, key=lambda u: u.t)  # stable: same-time lines keep the trace's order
+        return [u for i, u in enumerate(lines) if not (i and _taken_up_again(lines[i - 1], u))]
+
+
 def transcript(trace_path: Path) -> list[Utterance]:
-    started: dict[str, float] = {}
-    lines: list[Utterance] = []
+    transcriber = Transcriber()
     with trace_path.open(encoding="utf-8") as trace:
         for raw in trace:
-            event = json.loads(raw)
-            kind = event["ev"]
-            if kind == "skill_start":
-                started[event["node"]] = event["t"]
-            elif kind == "skill_outcome":
-                outputs = event["outputs"] or {}
-                began = started.pop(event["node"], event["t"])
-                for port, who in ROLES.items():
-                    text = outputs.get(port)
-                    if isinstance(text, str) and text.strip():
-                        t = began if who == "robot" else event["t"]
-                        lines.append(Utterance(t, who, text, event["node"], event["skill"]))
-    lines.sort(key=lambda u: u.t)  # stable: same-time lines keep the trace's order
-    return [u for i, u in enumerate(lines) if not (i and _taken_up_again(lines[i - 1], u))]
+            transcriber.add(json.loads(raw))
+    return transcriber.lines()
 
 
 def _taken_up_again(previous: Utterance, line: Utterance) -> bool:
     return line.who == previous.who == "visitor" and line.text.lower() == previous.text.lower()
 
 
-def write_transcript(folder: Path) -> Path | None:
-    """Write the run's transcript.jsonl; None (and no file) when nobody said anything."""
-    lines = transcript(folder / "trace.jsonl")
+def write_transcript(folder: Path, lines: list[Utterance] | None = None) -> Path | None:
+    """Write the run's transcript.jsonl (from its trace unless ``lines`` are given); None (and no
+    file) when nobody said anything."""
+    if lines is None:
+        lines = transcript(folder / "trace.jsonl")
     if not lines:
         return None
     path = folder / FILE

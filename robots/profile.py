@@ -2,8 +2,9 @@
 
 A profile gives the base's geometry and limits, the battery, which interfaces the robot has
 (and which hardware driver provides each; the simulator provides them all), each device's
-parameters, and default parameters for skills. Limits written here are enforced by the
-backends, never trusted to callers.
+parameters, default parameters for skills, and options per backend (``backends:``, checked
+against that backend's options when a run opens it, errors at their line). Limits written here
+are enforced by the backends, never trusted to callers.
 """
 
 from __future__ import annotations
@@ -111,6 +112,10 @@ class Profile(_Strict):
     interfaces: dict[str, Device]
     skills: dict[str, dict[str, Any]] = Field(default_factory=dict, description="default skill parameters")
     control: Control = Field(default_factory=Control)
+    backends: dict[str, dict[str, Any]] = Field(
+        default_factory=dict,
+        description="options per backend, e.g. {hardware: {port: /dev/ttyACM0}}; checked by the backend opened",
+    )
 
 
 def known_profiles() -> list[str]:

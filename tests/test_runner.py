@@ -108,4 +108,5 @@ def test_invalid_missions_and_backends_are_refused_before_anything_moves(tmp_pat
         run("missions/hello.yaml", backend="hardware", out=tmp_path / "hw")
     result = botstage("run", "--backend", "gpu", "--out", str(tmp_path / "x"))
     assert result.returncode == 2
-    assert result.stderr == "error: unknown backend 'gpu': use sim, emulator or hardware\n"
+    assert result.stderr.startswith("error: unknown backend 'gpu'; installed: sim (the built-in simulator")
+    assert "; emulator (" in result.stderr and "; hardware (" in result.stderr and result.stderr.count("\n") == 1

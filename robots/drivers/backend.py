@@ -7,9 +7,12 @@ Chefbot's depth camera, ``hardware: astra``) is listed in ``not_connected`` and 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
+from robots.backend import Fault
 from robots.clock import Clock
 from robots.drivers.chefbot_base import LAUNCHPAD, open_chefbot
 from robots.gridmap import GridMap
@@ -56,6 +59,15 @@ class SerialBackend:
         self.devices: dict[str, Any] = dict(self.base.devices)
         self.not_connected = sorted(set(profile.interfaces) - set(self.devices))
 
+    @property
+    def faults(self) -> Mapping[str, Fault]:
+        """None: faults are not injected into a real robot."""
+        return MappingProxyType({})
+
+    def true_pose(self) -> None:
+        """A real robot's true pose is unknown (its odometry is in the summary)."""
+        return None
+
     def use_clock(self, clock: Clock) -> None:
         """Stamp readings with this clock from now on (the run's, started once the robot is up)."""
         self.base.clock = clock
@@ -65,6 +77,9 @@ class SerialBackend:
 
     def close(self) -> None:
         self.base.close()  # zero speed, then the port
+
+    def write_results(self, folder: Path) -> None:
+        """A real robot's true path is unknown: no trajectory.csv (odometry is in the summary)."""
 
     def write_trajectory(self, path: Path) -> None:
         """A real robot's true path is unknown: no trajectory.csv (odometry is in the summary)."""

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from robots.backend import Fault
 from robots.clock import Clock
 from robots.drivers.backend import SerialBackend
 from robots.emulators.launchpad import LaunchpadEmulator
@@ -38,6 +40,8 @@ class _LockedLaser:
 
 
 class EmulatorBackend:
+    """The ``emulator`` backend: the real driver's devices, over the emulated board, on a simulated robot."""
+
     def __init__(
         self,
         profile: Profile,
@@ -73,6 +77,30 @@ class EmulatorBackend:
         self.not_simulated = sorted(set(profile.interfaces) - set(self.devices))
         self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
 
+    @property
+    def profile(self) -> Profile:
+        return self.world.profile
+
+    @property
+    def grid(self) -> GridMap:
+        return self.world.grid
+
+    @property
+    def faults(self) -> Mapping[str, Fault]:
+        """The board's faults, as ``botstage emulate`` types them: garbage, drop, stall, unplug, reset."""
+        emulator = self.emulator
+        return {
+            "garbage": emulator.inject_garbage,
+            "drop": emulator.drop_lines,
+            "stall": emulator.stall,
+            "unplug": emulator.disconnect,
+            "reset": emulator.board_reset,
+        }
+
+    def true_pose(self) -> Pose2D:
+        with self.lock:
+            return self.world.body.pose
+
     def use_clock(self, clock: Clock) -> None:
         """Stamp readings with this clock from now on (the run's, started once the robot is up)."""
         self.clock = clock
@@ -98,6 +126,9 @@ class EmulatorBackend:
             self.serial.close()  # zero speed first, through the pty
         finally:
             self.emulator.close()
+
+    def write_results(self, folder: Path) -> None:
+        self.write_trajectory(folder / "trajectory.csv")
 
     def write_trajectory(self, path: Path) -> None:
         lines = ["t,x,y,theta"] + [f"{t:.6g},{x:.6f},{y:.6f},{theta:.6f}" for t, x, y, theta in self.trajectory]

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
+from robots.backend import Fault
 from robots.clock import Clock
 from robots.gridmap import GridMap
 from robots.interfaces import Pose2D
@@ -61,6 +64,8 @@ def populated_world(
 
 
 class SimBackend:
+    """The ``sim`` backend: every interface the profile lists that the simulator has a device for."""
+
     def __init__(
         self,
         profile: Profile,
@@ -104,6 +109,31 @@ class SimBackend:
             else None
         )
 
+    @property
+    def profile(self) -> Profile:
+        return self.world.profile
+
+    @property
+    def grid(self) -> GridMap:
+        return self.world.grid
+
+    @property
+    def faults(self) -> Mapping[str, Fault]:
+        """None yet: a simulated robot's troubles come from its world (bumps, slip, a draining battery)."""
+        return MappingProxyType({})
+
+    def use_clock(self, clock: Clock) -> None:
+        """Stamp readings with this clock from now on."""
+        self.clock = clock
+        for device in self.devices.values():
+            if hasattr(device, "use_clock"):
+                device.use_clock(clock)
+            elif hasattr(device, "clock"):
+                device.clock = clock
+
+    def true_pose(self) -> Pose2D:
+        return self.world.body.pose
+
     def step(self) -> None:
         self.world.step(self.clock.period)
         self.crowd.step(self.clock.period)
@@ -114,6 +144,9 @@ class SimBackend:
 
     def close(self) -> None:
         self.world.stop()  # zero velocity on every exit path
+
+    def write_results(self, folder: Path) -> None:
+        self.write_trajectory(folder / "trajectory.csv")
 
     def write_trajectory(self, path: Path) -> None:
         lines = ["t,x,y,theta"] + [f"{t:.6g},{x:.6f},{y:.6f},{theta:.6f}" for t, x, y, theta in self.trajectory]

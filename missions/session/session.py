@@ -1,0 +1,348 @@
+"""A run of a mission, as a session with explicit phases.
+
+``check`` (the mission, the backend's name and options: before anything moves) -> ``open_backend``
+(the run folder, the clock, the robot) -> ``open_services`` (uploads, files, orders, localisation:
+the interfaces skills get beyond the devices) -> ``build`` (the engine and what the mission runs)
+-> ``loop`` (tick, step the world, after-tick work, until the mission ends, its time is up or
+someone stops it) -> ``shut_down`` (skills cancelled, services closed, the robot stopped) ->
+``write_results`` (every observer's ``finished``: summary, backend results, transcript, report).
+
+What consumes the run (summary, transcript, report, a live display, plugins) is an observer
+(``missions/session/observer.py``); what a run provides to skills is a service
+(``missions/session/service.py``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from datetime import datetime
+from pathlib import Path
+from typing import IO, Any
+
+import py_trees
+from py_trees.common import Status
+
+from behaviors.engine import Engine
+from behaviors.trace import Trace, jsonable
+from missions.check import Checked, build_root, check, root_spec_path, start_pose
+from missions.schema import Mission
+from missions.session.ending import outcome, sigterm_as_interrupt
+from missions.session.errors import MissionInvalid, RunError, StopRun
+from missions.session.observer import Hooks
+from missions.session.observers import (
+    BackendObserver,
+    BeforeTickHook,
+    ClockObserver,
+    ReportObserver,
+    TranscriptObserver,
+)
+from missions.session.plugins import PluginRegistry, service_registry
+from missions.session.result import RunResult
+from missions.session.summary import SummaryFileObserver, SummaryObserver
+from robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest
+from robots.backend_options import OptionSources, resolve
+from robots.backend_registry import DEFAULT, BackendRegistry, open_kind
+from robots.clock import Clock, SimClock, WallClock
+from robots.gridmap import GridMap
+from robots.gridmap import load as load_map
+from robots.interfaces import Pose2D
+from robots.located_yaml import Locations
+from robots.profile import Profile, load_profile, profile_path
+from robots.sim.backend import known_maps, map_path
+from skills.registry import Registry
+
+DONE = (Status.SUCCESS, Status.FAILURE)
+
+
+class RunSession:
+    """One run of one mission; ``run()`` goes through the phases in order and returns the result."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        backend: str = DEFAULT,
+        seed: int | None = None,
+        until: float | None = None,
+        realtime: bool = False,
+        out: Path | None = None,
+        registry: Registry | None = None,
+        blackboard: dict[str, Any] | None = None,
+        before_tick: Callable[[Engine], None] | None = None,
+        backend_options: Mapping[str, Any] | None = None,
+        port: str | None = None,
+        observers: Sequence[object] = (),
+        backends: BackendRegistry | None = None,
+        services: PluginRegistry | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.backend_name = backend
+        self.realtime = realtime
+        self.out = out
+        self.registry = registry
+        self.overrides = blackboard
+        self.given = OptionSources(backend_options or {}, port=port)
+        self.backends = backends if backends is not None else BackendRegistry.default()
+        services = services if services is not None else service_registry()
+        self.services = [services.create(name) for name in services]
+        builtin = [services.origin(name) == "builtin" for name in services]
+        self.hooks = self._hooks(before_tick, observers, builtin)
+        self._seed, self._until = seed, until
+        # set by the phases, in order
+        self.checked: Checked
+        self.kind: BackendKind
+        self.options: BackendOptions
+        self.seed: int
+        self.until: float | None
+        self.folder: Path
+        self.clock: Clock
+        self.started_at = time.perf_counter()
+        self.backend: Backend | None = None
+        self.interfaces: dict[str, Any] = {}
+        self.trace: Trace | None = None
+        self.engine: Engine | None = None
+        self.root: py_trees.behaviour.Behaviour | None = None
+        self.status = Status.INVALID
+        self.outcome, self.reason = "", ""
+        self.counters: dict[str, Any] = {}
+        self.final_blackboard: dict[str, Any] = {}
+        self._robot: tuple[Profile, Locations, GridMap, Pose2D] | None = None
+        self._sink: IO[str] | None = None
+        self._opened: list[Any] = []
+
+    def _hooks(
+        self, before_tick: Callable[[Engine], None] | None, observers: Sequence[object], builtin: list[bool]
+    ) -> Hooks:
+        """Every hook in the order the run needs: results first (the summary's core, then blocks),
+        external observers before the report (so it shows their blocks), summary.json last."""
+        hooks = Hooks()
+        if before_tick is not None:
+            hooks.add(BeforeTickHook(before_tick))
+        hooks.add(SummaryObserver())
+        hooks.add(BackendObserver())
+        for service, ours in zip(self.services, builtin, strict=True):
+            hooks.add(service, guarded=not ours)
+        hooks.add(ClockObserver())
+        hooks.add(TranscriptObserver())
+        for observer in observers:
+            hooks.add(observer, guarded=True)
+        hooks.add(ReportObserver())
+        hooks.add(SummaryFileObserver())
+        return hooks
+
+    @property
+    def mission(self) -> Mission:
+        """The checked mission."""
+        assert self.checked.mission is not None
+        return self.checked.mission
+
+    @property
+    def observer_errors(self) -> list[str]:
+        return self.hooks.errors
+
+    @property
+    def ending(self) -> bool:
+        """True after the run's last tick (the mission ended or its time is up)."""
+        if self.status in DONE:
+            return True
+        return self.until is not None and self.clock.now() >= self.until - 1e-9
+
+    # -- the phases ---------------------------------------------------------------------------
+
+    def run(self) -> RunResult:
+        self.check()
+        self.open_backend()
+        try:
+            self.open_services()
+            self.build()
+            self.loop()
+        finally:
+            self.shut_down()
+        return self.write_results()
+
+    def check(self) -> None:
+        """The mission, the backend and its options: every refusal comes before anything moves."""
+        checked = check(self.path, self.registry)
+        if not checked.ok:
+            raise MissionInvalid(checked.problems)
+        self.checked = checked
+        mission = self.mission
+        try:
+            self.kind = self.backends.get(self.backend_name)
+        except BackendError as exc:
+            raise RunError(exc.message) from None
+        if not self.kind.simulated and mission.robot is None:
+            raise RunError(
+                f"mission {mission.name!r} names no robot: there is no hardware to drive "
+                f"(run it on the simulator: --backend {DEFAULT})"
+            )
+        self.seed = mission.seed if self._seed is None else self._seed
+        self.until = mission.until if self._until is None else self._until
+        self._robot = self._place_robot()
+        profile, locations = (self._robot[0], self._robot[1]) if self._robot is not None else (None, None)
+        try:
+            self.options = resolve(self.kind, profile, locations, self.given)
+        except BackendError as exc:
+            raise RunError(exc.message, exc.problems) from None
+
+    def _place_robot(self) -> tuple[Profile, Locations, GridMap, Pose2D] | None:
+        """The mission's robot, map and start; None for a robot-less mission."""
+        mission = self.mission
+        if mission.robot is None:
+            return None
+        if mission.world is None:
+            raise RunError(
+                f"mission {mission.name!r} names robot {mission.robot!r} but no world: the simulator needs "
+                f"one (`world:` a shipped map: {', '.join(known_maps())}, or a map YAML)"
+            )
+        here = self.checked.path.parent
+        profile, _, loaded = load_profile(profile_path(mission.robot, here))  # type: ignore[arg-type]
+        assert profile is not None
+        grid = load_map(map_path(mission.world, here))  # type: ignore[arg-type]
+        x, y, theta = start_pose(mission, grid.places)
+        return profile, loaded.locations, grid, Pose2D(x, y, theta)
+
+    def open_backend(self) -> None:
+        """The run folder and the clock; then the robot, if the mission has one."""
+        rate = self.mission.rate_hz
+        self.folder = run_folder(self.mission.name, self.out)
+        self.clock = WallClock(rate) if self.realtime or not self.kind.simulated else SimClock(rate)
+        self.started_at = time.perf_counter()
+        self._sink = (self.folder / "trace.jsonl").open("w", encoding="utf-8")
+        if self._robot is None:
+            return
+        try:
+            self.backend = open_kind(self.kind, self._request(), self.options)
+        except BackendError as exc:
+            self._sink.close()
+            raise RunError(exc.message, exc.problems) from None
+        if not self.kind.simulated:  # connecting took a while: mission time starts now
+            self.clock = WallClock(rate)
+            self.backend.use_clock(self.clock)
+
+    def _request(self) -> OpenRequest:
+        assert self._robot is not None
+        mission = self.mission
+        profile, _, grid, start = self._robot
+        gatherings = tuple(
+            (g.time, tuple(grid.places[g.at][:2]) if isinstance(g.at, str) else (g.at[0], g.at[1]), g.size, g.stay)
+            for g in mission.gatherings
+        )
+        return OpenRequest(
+            profile,
+            start,
+            self.clock,
+            seed=self.seed,
+            grid=grid,
+            people=mission.people,
+            gatherings=gatherings,
+            voices=mission.voices.model_dump(),
+        )
+
+    def open_services(self) -> None:
+        """The interfaces skills get: the backend's devices, then each service's, in order."""
+        self.interfaces = dict(self.backend.devices) if self.backend is not None else {}
+        for service in self.services:
+            try:
+                given = service.open(self)
+            except RunError:
+                raise
+            except Exception as exc:  # a plugin's bug or a missing resource: said as a run error
+                name = getattr(service, "name", "") or type(service).__name__
+                raise RunError(f"service {name!r} cannot open: {type(exc).__name__}: {exc}") from exc
+            self._opened.append(service)
+            self.interfaces.update(given)
+
+    def build(self) -> None:
+        """The trace (observers subscribed), the engine, and what the mission runs."""
+        self.trace = Trace(self.clock, self._sink, keep=False)
+        self.hooks.subscribe(self.trace)
+        self.engine = Engine(
+            clock=self.clock, seed=self.seed, trace=self.trace, registry=self.registry, interfaces=self.interfaces
+        )
+        self.root = build(self.engine, self.checked, self.overrides)
+        self.engine.set_root(self.root)
+        self.hooks.run("started", self)
+
+    def loop(self) -> None:
+        """Tick until the mission ends, its time is up, the operator stops it or a hook raises StopRun."""
+        engine, clock, until = self.engine, self.clock, self.until
+        assert engine is not None and self.root is not None
+        interrupted, stopped = False, ""
+        try:
+            with sigterm_as_interrupt():
+                while until is None or clock.now() < until - 1e-9:
+                    self.hooks.run("before_tick", self)
+                    self.status = engine.tick()
+                    if self.backend is not None:
+                        self.backend.step()  # the world moves over the tick just decided
+                    self.hooks.run("after_tick", self)  # then estimates update, uploads settle, displays
+                    if self.status in DONE:
+                        break
+        except KeyboardInterrupt:
+            interrupted = True
+            engine.halt("interrupted by the operator")
+        except StopRun as stop:
+            stopped = stop.reason
+            engine.halt(stop.reason)
+        self.outcome, self.reason = outcome(engine.error, self.root, until, interrupted)
+        if stopped:
+            self.outcome, self.reason = "stopped_by_test", stopped
+        self.final_blackboard = engine.blackboard.snapshot()
+        self.counters = {key: jsonable(engine.blackboard.get(key, None)) for key in self.mission.counters}
+
+    def shut_down(self) -> None:
+        """Skills cancelled (motors stop), services closed, the robot stopped and released, the
+        trace closed: each step runs even if one before it failed."""
+        steps: list[Callable[[], Any]] = []
+        if self.engine is not None:
+            engine = self.engine
+            steps.append(lambda: engine.close("mission ended"))
+        steps += [service.close for service in self._opened]
+        if self.backend is not None:
+            steps.append(self.backend.close)
+        if self._sink is not None:
+            steps.append(self._sink.close)
+        failed: BaseException | None = None
+        for step in steps:
+            try:
+                step()
+            except Exception as exc:
+                failed = failed or exc
+        if failed is not None:
+            raise failed
+
+    def write_results(self) -> RunResult:
+        """Every observer's ``finished``, in order; the last one writes summary.json."""
+        result = RunResult(self.outcome, self.reason, self.folder, {}, self.final_blackboard)
+        self.hooks.run("finished", self, result)
+        return result
+
+
+def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> py_trees.behaviour.Behaviour:
+    """Declare the mission's keys, set its initial values and build what runs."""
+    mission = checked.mission
+    assert mission is not None
+    for key, tp in checked.key_types.items():
+        engine.blackboard.declare(key, tp)
+    for key, value in checked.key_defaults.items():
+        engine.blackboard.set(key, value, writer="init")
+    for key, value in {**mission.blackboard, **(overrides or {})}.items():
+        engine.blackboard.set(key, value, writer="init")
+    builder = engine.builder(mission.trees, mission.machines, mission.skill_params)
+    return build_root(builder, mission, root_spec_path(mission))
+
+
+def run_folder(name: str, out: Path | None) -> Path:
+    """``out``, or a new ``runs/<mission>-<timestamp>`` folder."""
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        return out
+    base = Path("runs") / f"{name}-{datetime.now().strftime('%Y%m%d-%H%M%S')}"
+    folder, n = base, 1
+    while folder.exists():
+        n += 1
+        folder = base.with_name(f"{base.name}-{n}")
+    folder.mkdir(parents=True)
+    return folder
