@@ -1,9 +1,11 @@
 """Check a mission before anything moves, and build it for the runner and the pictures.
 
-Every problem is reported at once as ``file:line:col: error: message (hint)``: YAML syntax,
-the mission's own keys, declared key types, unknown skills, ports and types (from the engine's
-builder), states and transitions, unreachable states, unhandled outcomes, blackboard keys read
-that nothing writes or initialises, and ports bound to keys of another declared type.
+A mission is checked from a file (``check``) or from memory (``check_loaded``: one built in
+Python, whose locations point at the Python source). Every problem is reported at once as
+``file:line:col: error: message (hint)``: YAML syntax, the mission's own keys, declared key
+types, unknown skills, ports and types (from the engine's builder), states and transitions,
+unreachable states, unhandled outcomes, blackboard keys read that nothing writes or
+initialises, and ports bound to keys of another declared type.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import contextlib
 import difflib
 import types
 import typing
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -69,16 +71,29 @@ def check(path: str | Path, registry: Registry | None = None) -> Checked:
     never as a traceback in the user's face.
     """
     path = Path(path)
+    return _safely(path, Location(str(path), 1, 1), lambda: _check(load(path), path, registry))
+
+
+def check_loaded(loaded: Loaded, path: str | Path, registry: Registry | None = None) -> Checked:
+    """Check a mission already in memory, from any front end; never raises for a bad mission.
+
+    ``path`` is where the mission comes from: it names a mission without a name, and relative
+    robot and world paths are found beside it. Problems are located through ``loaded.locations``.
+    """
+    path = Path(path)
+    where = loaded.locations.root or Location(str(path), 1, 1)
+    return _safely(path, where, lambda: _check(loaded, path, registry))
+
+
+def _safely(path: Path, where: Location, checking: Callable[[], Checked]) -> Checked:
     try:
-        return _check(path, registry)
+        return checking()
     except Exception as exc:  # the safety net; the fuzz test asserts it is never needed
-        where = Location(str(path), 1, 1)
         problem = Problem(where, f"{INTERNAL}: {type(exc).__name__}: {exc}", "please report this with the file")
         return Checked(path, Loaded(None, Locations(root=where), [], [path]), None, [problem])
 
 
-def _check(path: Path, registry: Registry | None) -> Checked:
-    loaded = load(path)
+def _check(loaded: Loaded, path: Path, registry: Registry | None) -> Checked:
     out = _Collector(loaded)
     if loaded.data is None:
         return Checked(path, loaded, None, out.result())
@@ -401,4 +416,4 @@ def _compatible(declared: Any, port: Any, mode: str) -> bool:
     return getattr(source, "__origin__", source) is target  # list[float] into a plain list
 
 
-__all__ = ["Checked", "Location", "build_root", "check", "root_spec_path"]
+__all__ = ["Checked", "Location", "build_root", "check", "check_loaded", "root_spec_path"]

@@ -1,0 +1,397 @@
+"""A mission as a Python object: built in Python or loaded from YAML, then checked, drawn and run.
+
+``to_dict()`` is exactly the data the YAML front end loads (so the engine cannot tell the two
+apart) and ``to_yaml()`` the file a user could save. Checking uses the same checker as files do,
+with locations pointing at the Python lines that built each part.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib
+import importlib.util
+import sys
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from missions.api.lowering import Lowering, Part, in_order
+from missions.api.machine import StateMachine
+from missions.api.nodes import NodeLike, as_node
+from missions.api.specs import machine_of, node_of
+from missions.api.where import caller, caller_file
+from missions.check import Checked, build_root, check_loaded, root_spec_path
+from missions.loader import Loaded, Location, Problem, load
+
+if TYPE_CHECKING:  # the runner loads the simulator and friends: only when a mission runs
+    from missions.runner import RunResult
+    from skills.registry import Registry
+
+# the file format's top-level keys, in the order a file is written (`include` is the loader's)
+FIELDS = (
+    "name",
+    "description",
+    "robot",
+    "world",
+    "start",
+    "people",
+    "gatherings",
+    "voices",
+    "seed",
+    "rate_hz",
+    "until",
+    "keys",
+    "blackboard",
+    "skill_params",
+    "counters",
+    "trees",
+    "machines",
+    "machine",
+    "root",
+)
+COLLECTIONS: dict[str, type] = {  # empty is the default: not written
+    "gatherings": list,
+    "keys": dict,
+    "blackboard": dict,
+    "skill_params": dict,
+    "counters": list,
+    "trees": dict,
+    "machines": dict,
+}
+RUN_FILE = "mission.yaml"  # what a run of a Python mission leaves in its folder, and runs
+
+
+def _invalid(problems: list[Problem]) -> Exception:
+    from missions.runner import MissionInvalid
+
+    return MissionInvalid(problems)
+
+
+class Mission:
+    """A mission; keywords are the file format's keys, None meaning "not said" (its default).
+
+    ``Mission("patrol", seed=7, until=60, blackboard={"battery_pct": 100})``, then
+    ``add_tree``, ``add_machine``, and ``mission.machine = StateMachine(...)`` or ``root=``.
+    """
+
+    name: str | None
+    description: str | None
+    robot: str | None
+    world: str | None
+    start: str | list[float] | None
+    people: int | None
+    gatherings: list[Any]
+    voices: dict[str, Any] | None
+    seed: int | None
+    rate_hz: float | None
+    until: float | None
+    keys: dict[str, Any]
+    blackboard: dict[str, Any]
+    skill_params: dict[str, dict[str, Any]]
+    counters: list[str]
+    trees: dict[str, Any]
+    machines: dict[str, Any]
+    machine: Any
+    root: str | None
+
+    def __init__(
+        self,
+        name: str | None = None,
+        *,
+        description: str | None = None,
+        robot: str | None = None,
+        world: str | None = None,
+        start: str | Iterable[float] | None = None,
+        people: int | None = None,
+        gatherings: Iterable[Mapping[str, Any]] | None = None,
+        voices: Mapping[str, Any] | None = None,
+        seed: int | None = None,
+        rate_hz: float | None = None,
+        until: float | None = None,
+        keys: Mapping[str, Any] | None = None,
+        blackboard: Mapping[str, Any] | None = None,
+        skill_params: Mapping[str, Mapping[str, Any]] | None = None,
+        counters: Iterable[str] | None = None,
+        trees: Mapping[str, NodeLike] | None = None,
+        machines: Mapping[str, Any] | None = None,
+        machine: StateMachine | Mapping[str, Any] | None = None,
+        root: str | None = None,
+    ) -> None:
+        given = dict(locals())
+        where = caller()
+        self._start(where, caller_file())
+        for field in FIELDS:
+            value = given[field]
+            if value is not None:
+                if field in COLLECTIONS:
+                    value = COLLECTIONS[field](value)
+                elif field == "start" and not isinstance(value, str):
+                    value = list(value)
+                setattr(self, field, value)
+                self._placed[(field,)] = where
+        self._tracking = True
+
+    def _start(self, where: Location | None, origin: Path) -> None:
+        """Every field unset, nothing placed: what both front ends start from."""
+        state = {
+            "where": where,  # where the mission was made (problems of the mission as a whole go there)
+            "origin": origin,  # names a nameless mission; relative robot and world paths are beside it
+            "_tracking": False,  # record where fields are set (not while a file is read)
+            "_placed": {},  # spec path -> where Python set it
+            "_raw": {},  # what a file said that does not fit a field (kept for the checker to report)
+            "_base": None,  # the file's locations
+            "_load_problems": [],
+            "_file": None,
+            "_as_loaded": None,
+            "_order": None,  # the file's key order
+        }
+        for attribute, value in state.items():
+            object.__setattr__(self, attribute, value)
+        for field in FIELDS:
+            object.__setattr__(self, field, COLLECTIONS[field]() if field in COLLECTIONS else None)
+
+    def __setattr__(self, attribute: str, value: Any) -> None:
+        if attribute in FIELDS:
+            self._raw.pop(attribute, None)
+            if value is None and attribute in COLLECTIONS:
+                value = COLLECTIONS[attribute]()
+            if self._tracking:
+                self._placed[(attribute,)] = caller()
+        object.__setattr__(self, attribute, value)
+
+    # -- building ---------------------------------------------------------------------------
+
+    def add_tree(self, name: str, node: NodeLike) -> Mission:
+        """A named tree: what runs (``root``, or ``main``), a subtree, or a state's contents."""
+        if name in self.trees:
+            raise ValueError(f"the mission already has a tree {name!r}")
+        self._raw.pop("trees", None)  # a file's malformed `trees:` gives way to trees added here
+        self.trees[name] = as_node(node)
+        self._placed[("trees", name)] = caller()
+        return self
+
+    def add_machine(self, name: str, machine: StateMachine | Mapping[str, Any]) -> Mission:
+        """A named machine, for ``add_state(machine="name")`` and ``MachineRef("name")``."""
+        if name in self.machines:
+            raise ValueError(f"the mission already has a machine {name!r}")
+        self._raw.pop("machines", None)
+        self.machines[name] = machine
+        self._placed[("machines", name)] = caller()
+        return self
+
+    # -- the YAML front end -----------------------------------------------------------------
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> Mission:
+        """A mission file (with its includes merged in) as a Mission; problems are its file's.
+
+        Raises runner's ``MissionInvalid`` when the file cannot be read as a mission at all.
+        """
+        path = Path(path)
+        loaded = load(path)
+        if loaded.data is None:
+            raise _invalid(loaded.problems)
+        mission = cls.__new__(cls)
+        mission._start(None, path)
+        mission._base = loaded.locations
+        mission._load_problems = list(loaded.problems)
+        mission._file = path
+        mission._as_loaded = copy.deepcopy(loaded.data)
+        mission._order = tuple(loaded.data)
+        for name, value in loaded.data.items():
+            if name in FIELDS and value is not None and isinstance(value, COLLECTIONS.get(name, object)):
+                if name == "trees":
+                    value = {tree: node_of(spec) for tree, spec in value.items()}
+                elif name == "machines":
+                    value = {machine: machine_of(spec) for machine, spec in value.items()}
+                elif name == "machine":
+                    value = machine_of(value)
+                object.__setattr__(mission, name, value)
+            else:
+                mission._raw[name] = value
+        mission._tracking = True
+        return mission
+
+    @classmethod
+    def from_python(cls, target: str | Path) -> Mission:
+        """The mission a Python module defines: what its ``build()`` returns, else its ``mission``.
+
+        ``target`` is a file (``my_mission.py``) or a module (``missions.examples.hello_api``).
+        """
+        if str(target).endswith(".py"):
+            path = Path(target).resolve()
+            spec = importlib.util.spec_from_file_location(f"botstage_mission_{path.stem}", path)
+            if spec is None or spec.loader is None:
+                raise ImportError(f"cannot import {target}")
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[spec.name] = module
+            spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(str(target))
+        found = module.build() if callable(getattr(module, "build", None)) else getattr(module, "mission", None)
+        if not isinstance(found, Mission):
+            raise TypeError(f"{target} has neither build() returning a Mission nor a `mission`")
+        return found
+
+    def to_dict(self) -> dict[str, Any]:
+        """The mission as the YAML front end loads it; ValueError if a value is not plain data."""
+        data, low = self._lowered()
+        low.raise_problems()
+        return data
+
+    def to_yaml(self) -> str:
+        """The mission file a user could save: loading it gives ``to_dict()`` back."""
+        return dump_yaml(self.to_dict())
+
+    def _lowered(self) -> tuple[dict[str, Any], Lowering]:
+        low = Lowering(self._base, self.where)
+        data: dict[str, Any] = {}
+        for field in FIELDS:
+            if field in self._raw:
+                data[field] = low.value(self._raw[field], (field,))
+                continue
+            value = getattr(self, field)
+            if value is None or (field in COLLECTIONS and not value):
+                continue
+            low.place((field,), self._placed.get((field,)))
+            if field in ("trees", "machines") and isinstance(value, Mapping):
+                for name in value:
+                    low.place((field, name), self._placed.get((field, name)))
+                if field == "trees":
+                    value = {name: tree.as_node() if isinstance(tree, Part) else tree for name, tree in value.items()}
+            data[field] = low.value(value, (field,))
+        for name, value in self._raw.items():
+            if name not in FIELDS:
+                data[name] = low.value(value, (name,))
+        return in_order(data, self._order), low
+
+    # -- checking, drawing, running ---------------------------------------------------------
+
+    def check(self, registry: Registry | None = None) -> Checked:
+        """Check it as ``botstage validate`` checks a file; problems point at the Python lines
+        (or the YAML lines, for what came from a file)."""
+        data, low = self._lowered()
+        unwritable = low.problems()  # like a file that does not parse: nothing else can be judged
+        loaded = Loaded(None if unwritable else data, low.locations, [*self._load_problems, *unwritable], [self.origin])
+        return check_loaded(loaded, self.origin, registry)
+
+    def checked(self, registry: Registry | None = None) -> Checked:
+        """The check of a valid mission; runner's ``MissionInvalid`` (its problems) otherwise."""
+        result = self.check(registry)
+        if not result.ok:
+            raise _invalid(result.problems)
+        return result
+
+    def draw(
+        self,
+        fmt: str | None = None,
+        *,
+        tree: str | None = None,
+        machine: bool = False,
+        registry: Registry | None = None,
+    ) -> str | bytes:
+        """A picture of what runs (or of its machine, or of a named tree), as ``botstage tree`` /
+        ``botstage machine`` draw it: text for ascii, unicode, dot, svg, mermaid and json, bytes
+        for png. ``fmt`` defaults to unicode for trees, ascii for machines."""
+        from behaviors.engine import Engine
+        from behaviors.render import MACHINE_FORMATS, TREE_FORMATS, describe, render
+        from robots.clock import SimClock
+
+        fmt = fmt or ("ascii" if machine else "unicode")
+        formats = MACHINE_FORMATS if machine else TREE_FORMATS
+        if fmt not in formats:
+            raise ValueError(f"unknown format {fmt!r}; use one of {', '.join(formats)}")
+        if tree is not None and machine:
+            raise ValueError("draw a named tree or the machine, not both")
+        spec = self.checked(registry).mission
+        assert spec is not None
+        if tree is not None:
+            if tree not in spec.trees:
+                raise ValueError(f"no tree {tree!r} (trees: {', '.join(spec.trees) or 'none'})")
+            spec_path: tuple[str, ...] = ("trees", tree)
+        elif machine and spec.machine is not None:
+            spec_path = ("machine",)
+        else:  # like `botstage machine` on a mission without one: the tree it runs
+            spec_path = root_spec_path(spec)  # type: ignore[assignment]
+        engine = Engine(clock=SimClock(spec.rate_hz), registry=registry)
+        try:
+            root = build_root(engine.builder(spec.trees, spec.machines, spec.skill_params), spec, spec_path)
+            picture = render(describe(root), fmt)
+        finally:
+            engine.close()
+        return picture if fmt == "png" else picture.decode()
+
+    def run(self, *, out: Path | None = None, registry: Registry | None = None, **options: Any) -> RunResult:
+        """Check, then run as ``missions.runner.run`` does (same options: ``backend``, ``seed``,
+        ``until``, ``realtime``, ``blackboard``, ``before_tick``, ...).
+
+        The runner takes a file: a mission changed since (or never) loaded from one is checked
+        here first, so problems point at the Python lines, then written to the run folder as
+        ``mission.yaml`` and run from there (the run's ``summary.json`` names that file).
+        """
+        from missions.runner import run, run_folder
+
+        checked = self.checked(registry)
+        if self._file is not None and self.to_dict() == self._as_loaded:
+            return run(self._file, out=out, registry=registry, **options)
+        assert checked.mission is not None
+        folder = run_folder(checked.mission.name, out)
+        path = folder / RUN_FILE
+        path.write_text(dump_yaml(self._runnable(checked.mission.name)), encoding="utf-8")
+        return run(path, out=folder, registry=registry, **options)
+
+    def _runnable(self, name: str) -> dict[str, Any]:
+        """The data to run from a file elsewhere: named, its robot and world paths made absolute."""
+        from robots.profile import known_profiles, profile_path
+        from robots.sim.backend import known_maps, map_path
+
+        data = {"name": name, **self.to_dict()}
+        for field, find, shipped in (("robot", profile_path, known_profiles), ("world", map_path, known_maps)):
+            value = data.get(field)
+            if isinstance(value, str) and value not in shipped():
+                found = find(value, self.origin.parent)
+                if found is not None:
+                    data[field] = str(found.resolve())
+        return data
+
+    def __repr__(self) -> str:
+        where = f" at {self.where}" if self.where is not None else f" from {self._file}"
+        return f"<Mission {self.name or self.origin.stem}{where}>"
+
+
+class _Dumper(yaml.SafeDumper):
+    """Block style, with short leaf mappings and lists in flow style, as missions are written."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+    def increase_indent(self, flow: bool = False, indentless: bool = False) -> None:
+        super().increase_indent(flow, False)  # a list under a key is indented, as missions are written
+
+
+def _leaf(items: Iterable[Any]) -> bool:
+    return all(not isinstance(item, dict | list) for item in items)
+
+
+_Dumper.add_representer(
+    dict,
+    lambda dumper, data: dumper.represent_mapping(
+        "tag:yaml.org,2002:map", data, flow_style=len(data) <= 4 and _leaf(data.values())
+    ),
+)
+_Dumper.add_representer(
+    list,
+    lambda dumper, data: dumper.represent_sequence(
+        "tag:yaml.org,2002:seq", data, flow_style=len(data) <= 8 and _leaf(data)
+    ),
+)
+
+
+def dump_yaml(data: Mapping[str, Any]) -> str:
+    """A mission's data as a mission file's text."""
+    return yaml.dump(dict(data), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=100)
+
+
+__all__ = ["FIELDS", "RUN_FILE", "Mission", "dump_yaml"]

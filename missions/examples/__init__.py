@@ -1,0 +1,1 @@
+"""Runnable examples of botstage's Python API: ``python -m missions.examples.<name>``."""
