@@ -9,9 +9,9 @@ import pytest
 from py_trees.common import Status
 
 from behaviors.engine import Engine
+from missions.bench.bench_tick import timeouts_spec
 from robots.clock import SimClock
 from skills.registry import Registry
-from tests.bench.bench_tick import timeouts_spec
 from tests.conftest import TEST_SKILLS
 
 TREES = {

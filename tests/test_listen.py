@@ -19,12 +19,12 @@ from robots.interfaces import Pose2D
 from robots.profile import load_profile
 from robots.sim.backend import SimBackend
 from skills.base import Outcome, SkillContext, SkillLogger
+from skills.dict_board import DictBoard
 from skills.execution import SkillExecution
 from skills.listen import Listen
 from skills.registry import Registry
 from skills.speech.wav import read_wav
 from skills.workers import Workers
-from tests.tools import DictBoard
 
 DATA = Path(__file__).parent / "data" / "speech"
 MUSEUM = load("robots/maps/museum.yaml")

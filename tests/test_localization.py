@@ -1,6 +1,6 @@
 """Localisation: the pose EKF, scan matching against the map, and the Localizer on the simulator.
 
-The drives use ``tests/bench/bench_localization.py``'s harness: the robot is steered with its
+The drives use ``missions/bench/bench_localization.py``'s harness: the robot is steered with its
 true pose and its encoders count the wheels' turning, so odometry drifts as on a real floor.
 Bounds were measured (see the benchmark) and are asserted with margin; every run is seeded.
 """
@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from missions.bench.bench_localization import drive_loop, robot_profile
 from robots.clock import SimClock
 from robots.gridmap import FREE, OCCUPIED, GridMap, load
 from robots.interfaces import LaserScan, Pose2D
@@ -21,7 +22,6 @@ from robots.sim.world import World
 from skills.nav.ekf import PoseEKF, wrap
 from skills.nav.localization import Localizer, LocalizerParams, PoseEstimate, increment
 from skills.nav.scan_match import MatchResult, ScanMatcher
-from tests.bench.bench_localization import drive_loop, robot_profile
 
 MUSEUM = load("robots/maps/museum.yaml")
 PEOPLEBOT = robot_profile("peoplebot")

@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
+from missions.bench.navsim import NavSim, grid
 from robots.gridmap import FREE, OCCUPIED, GridMap
 from skills.approach import Approach
 from skills.back_to_point import BackToPoint
 from skills.navigate import Navigate
 from skills.recoveries import BackUp, ClearCostmap, Spin
 from skills.wander import Wander
-from tests.navsim import NavSim, grid
 
 
 def tour(names: list[str]) -> list[str]:

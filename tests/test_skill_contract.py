@@ -10,9 +10,9 @@ from pydantic import BaseModel
 
 from robots.clock import SimClock
 from skills.base import In, NoParams, Out, Outcome, Skill, SkillContext, SkillLogger, SkillRun
+from skills.dict_board import DictBoard
 from skills.execution import SkillExecution
 from skills.workers import Workers
-from tests.tools import DictBoard
 
 
 def context(skill: Skill, logs: list[str] | None = None, workers: Workers | None = None) -> SkillContext:

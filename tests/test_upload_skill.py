@@ -18,13 +18,13 @@ from missions.gallery.server import start_gallery
 from missions.runner import run as run_mission
 from robots.clock import SimClock
 from skills.base import Outcome, SkillContext, SkillLogger
+from skills.dict_board import DictBoard as Board
 from skills.execution import SkillExecution
 from skills.outbox.service import Uploads
 from skills.outbox.settings import TOKEN_ENV
 from skills.upload import Upload
 from skills.workers import Workers
 from tests.test_outbox import TOKEN, make_photo, photos_in
-from tests.tools import DictBoard as Board
 
 
 class Harness:

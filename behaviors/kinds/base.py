@@ -114,6 +114,10 @@ class NodeKind:
     def option_names(self) -> set[str]:
         return set(self.Options.model_fields)
 
+    def written(self) -> str:
+        """How a node of this kind is written, for listings: ``timeout: ARG, child: NODE``."""
+        return f"{self.name}: VALUE"
+
     def schema_properties(self, registry: Registry) -> dict[str, Any]:
         """This kind's properties of the node object in the mission JSON Schema."""
         return {self.name: self.value_schema(registry), **_option_schemas(self.Options)}
@@ -130,6 +134,9 @@ class CompositeKind(NodeKind):
     def value_schema(self, registry: Registry) -> dict[str, Any]:
         return {"type": "array", "items": NODE_REF, **_described(self.description)}
 
+    def written(self) -> str:
+        return f"{self.name}: [NODE, ...]"
+
 
 class DecoratorKind(NodeKind):
     """A node with one child. Without an ``argument`` type the value is the child
@@ -142,6 +149,9 @@ class DecoratorKind(NodeKind):
 
     def option_names(self) -> set[str]:
         return super().option_names() | ({"child"} if self.argument is not None else set())
+
+    def written(self) -> str:
+        return f"{self.name}: NODE" if self.argument is None else f"{self.name}: ARG, child: NODE"
 
     def value_schema(self, registry: Registry) -> dict[str, Any]:
         if self.argument is None:

@@ -61,6 +61,9 @@ class Skill(LeafKind):
     def default_name(self, spec: Mapping[str, Any]) -> str:
         return spec["skill"] if isinstance(spec.get("skill"), str) else self.name
 
+    def written(self) -> str:
+        return "skill: NAME, inputs: {...}  or  NAME: {inputs}"
+
     def describe(self, node: py_trees.behaviour.Behaviour) -> Described:
         return describe_skill(node)
 
@@ -92,6 +95,9 @@ class Condition(LeafKind):
     def value_schema(self, registry: Registry) -> dict[str, Any]:
         return CONDITION_SCHEMA
 
+    def written(self) -> str:
+        return "condition: CONDITION"
+
 
 class SubtreeOptions(KindOptions):
     remap: Any = Field(default=None, description="inner key names to outer key names")
@@ -109,6 +115,9 @@ class Subtree(LeafKind):
 
     def default_name(self, spec: Mapping[str, Any]) -> str:
         return spec["subtree"] if isinstance(spec.get("subtree"), str) else self.name
+
+    def written(self) -> str:
+        return "subtree: TREE"
 
     def schema_properties(self, registry: Registry) -> dict[str, Any]:
         return {"subtree": {"type": "string"}, "remap": {"type": "object", "additionalProperties": {"type": "string"}}}
@@ -133,6 +142,9 @@ class Machine(LeafKind):
 
     def value_schema(self, registry: Registry) -> dict[str, Any]:
         return {"anyOf": [{"type": "string"}, MACHINE_REF]}
+
+    def written(self) -> str:
+        return "machine: NAME or {states: ...}"
 
 
 def describe_skill(node: py_trees.behaviour.Behaviour) -> Described:

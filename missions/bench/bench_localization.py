@@ -17,7 +17,7 @@ and 4° off; and Chefbot (odometry + IMU, no laser) on a restaurant loop.
 The simulator's encoders count the wheels' turning, not the ground they covered (wheel slip),
 so odometry drifts as on a real floor.
 
-Run with ``botstage bench nav`` or ``python -m tests.bench.bench_localization`` (``--quick`` for one seed).
+Run with ``botstage bench nav`` or ``python -m missions.bench.bench_localization`` (``--quick`` for one seed).
 """
 
 from __future__ import annotations
@@ -32,11 +32,12 @@ from typing import Any
 
 import numpy as np
 
+from robots import PROFILES_DIR
 from robots.clock import SimClock
 from robots.gridmap import FREE, GridMap, load
 from robots.interfaces import LaserScan, Pose2D
 from robots.profile import Device, Profile, load_profile
-from robots.sim.backend import SimBackend
+from robots.sim.backend import MAPS_DIR, SimBackend
 from robots.sim.world import World
 from skills.nav.controller import FollowerParams, PathFollower
 from skills.nav.costmap import inflated_costs
@@ -64,7 +65,7 @@ SEEDS = (1, 2, 3, 4, 5)
 def robot_profile(name: str, imu: bool = True) -> Profile:
     """A shipped profile; with ``imu`` one is added where the profile has none (the PeopleBot's
     Pioneer base takes an optional gyro; the profile lists what the paper's robot carried)."""
-    profile, problems, _ = load_profile(f"robots/profiles/{name}.yaml")
+    profile, problems, _ = load_profile(PROFILES_DIR / f"{name}.yaml")
     assert profile is not None, problems
     if imu and "imu" not in profile.interfaces:
         interfaces = {**profile.interfaces, "imu": Device(model="gyro added by the benchmark")}
@@ -115,7 +116,7 @@ def drive_loop(
     max_linear: float = 0.6,
 ) -> LoopRun:
     """Drive ``route`` (place names) on the true pose and track the estimators (see the module)."""
-    grid: GridMap = load(f"robots/maps/{world}.yaml")
+    grid: GridMap = load(MAPS_DIR / f"{world}.yaml")
     route = route or (MUSEUM_LOOP if world == "museum" else RESTAURANT_LOOP)
     profile = robot_profile(robot)
     clock = SimClock(RATE_HZ)
@@ -244,7 +245,7 @@ def bench_drift(seeds: tuple[int, ...], people: int = 0) -> list[dict[str, Any]]
 def bench_match_offsets(trials: int, seed: int = 0) -> dict[str, Any]:
     """Scan matches from random free poses of the museum with the prior 0.15 m and 4° off and a
     wide prior covariance (the search window at its largest): time, acceptance and error."""
-    grid = load("robots/maps/museum.yaml")
+    grid = load(MAPS_DIR / "museum.yaml")
     profile = robot_profile("peoplebot")
     device = profile.interfaces["laser"]
     matcher = ScanMatcher(grid, device.pose)

@@ -1,4 +1,6 @@
-"""Skills on the simulated robot without a mission: a world, the run's services and a context."""
+"""Skills on the simulated robot without a mission: a world, the run's services and a context.
+
+The benchmarks and the tests drive navigation and perception skills with it."""
 
 from __future__ import annotations
 
@@ -6,6 +8,7 @@ import random
 from typing import Any
 
 from missions.services import RobotServices
+from robots import PROFILES_DIR
 from robots.clock import SimClock
 from robots.gridmap import GridMap
 from robots.gridmap import load as load_map
@@ -13,9 +16,9 @@ from robots.interfaces import Pose2D
 from robots.profile import Profile, load_profile
 from robots.sim.backend import SimBackend, map_path
 from skills.base import Outcome, Skill, SkillContext, SkillLogger
+from skills.dict_board import DictBoard as Board
 from skills.execution import SkillExecution
 from skills.workers import Workers
-from tests.tools import DictBoard as Board
 
 MAPS: dict[str, GridMap] = {}
 
@@ -38,7 +41,7 @@ class NavSim:
         if isinstance(robot, Profile):
             profile = robot
         else:
-            profile, problems, _ = load_profile(f"robots/profiles/{robot}.yaml")
+            profile, problems, _ = load_profile(PROFILES_DIR / f"{robot}.yaml")
             assert profile is not None, problems
         self.grid = grid(world) if isinstance(world, str) else world
         pose = self.grid.places[start] if isinstance(start, str) else start

@@ -127,8 +127,8 @@ def bench_final_pose(goals: int, seed: int = 11) -> dict[str, Any]:
 
 def final_pose_run(goals: int, seed: int) -> tuple[dict[str, Any], np.ndarray]:
     """The Table 2 protocol once: its figures, and each goal's error (x cm, y cm, theta deg)."""
+    from missions.bench.navsim import NavSim
     from skills.navigate import Navigate
-    from tests.navsim import NavSim
 
     sim = NavSim("museum", "peoplebot", "hall_centre", seed=seed)
     rng = np.random.default_rng(seed)
@@ -202,13 +202,18 @@ def bench_final_pose_seeds(seeds: tuple[int, ...], goals: int) -> dict[str, Any]
     }
 
 
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The benches whose median time is over their target."""
+    return [r["bench"] for r in results if r.get("median_ms", 0) > r.get("target_ms", float("inf"))]
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     headline = bench_final_pose(10 if quick else 50)
     results = [bench_planning(10 if quick else 50), headline]
     results.append(bench_final_pose_seeds((12, 13) if quick else (12, 13, 14, 15, 16, 17, 18, 19), 10 if quick else 50))
     for result in results:
         print(json.dumps(result), flush=True)
-    from tests.bench import bench_localization  # pose drift over the 56 m loop: prints its own
+    from missions.bench import bench_localization  # pose drift over the 56 m loop: prints its own
 
     return results + bench_localization.main(quick=quick)
 

@@ -286,6 +286,11 @@ def under_fifo(bench: Any) -> dict[str, Any]:
     return result
 
 
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The benches that missed their target."""
+    return [r["bench"] for r in results if not r.get("meets_target", True)]
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     data = b"".join(firmware_loops(5_000 if quick else 60_000))  # 0.3 or 3.6 MB
     results = []

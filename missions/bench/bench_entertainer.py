@@ -39,6 +39,11 @@ def one(seed: int, until: float | None, folder: Path) -> dict[str, Any]:
     }
 
 
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The runs slower than the 60 s target."""
+    return [r["bench"] for r in results if r.get("bench") == "entertainer_run" and r["target_ratio"] < 1.0]
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     seeds = (1,) if quick else (1, 2, 3, 4, 5)
     results = []

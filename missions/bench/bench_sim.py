@@ -59,6 +59,11 @@ def bench_museum(sim_seconds: float, repeats: int) -> dict[str, Any]:
     }
 
 
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The benches slower than their target (sim seconds per wall second)."""
+    return [r["bench"] for r in results if r["speedup_vs_realtime"] < r["target"]]
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     results = [bench_museum(60.0 if quick else 600.0, 2 if quick else 3)]
     for result in results:

@@ -126,7 +126,7 @@ ROOM_DBFS = -50.0
 PAD = 8000  # half a second of noise before and after
 
 
-class Trial(NamedTuple):  # not a dataclass: `botstage bench` loads this file outside sys.modules
+class Trial(NamedTuple):
     label: str | None  # the command said, None for a non-command phrase
     text: str
     voice: str
@@ -278,6 +278,18 @@ def tune(quick: bool = False) -> list[dict[str, Any]]:
         print(json.dumps(row), flush=True)
         results.append(row)
     return results
+
+
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The conditions under their recognition target at 10 dB, or over the false accepts allowed."""
+    return [
+        name
+        for r in results
+        if r.get("bench") == "speech_commands"
+        for name, c in r["conditions"].items()
+        if (name.endswith("_10db") and c["overall"] < r["targets"]["overall_10db"])
+        or c["false_accepts"] > r["targets"]["false_accepts"]
+    ]
 
 
 def main(quick: bool = False, sweep: bool = False) -> list[dict[str, Any]]:

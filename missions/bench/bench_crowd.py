@@ -64,8 +64,8 @@ def _group(rng: np.random.Generator, size: int) -> list[tuple[float, float]]:
 
 
 def bench_accuracy(trials: int, seed: int = 5) -> dict[str, Any]:
+    from missions.bench.navsim import NavSim
     from skills.perception.people_tracking import sensor_to_map
-    from tests.navsim import NavSim
 
     rng = np.random.default_rng(seed)
     ours: list[tuple[float, float]] = []
@@ -159,11 +159,11 @@ def bench_cost(frames: int, people: int = 15, seed: int = 1) -> dict[str, Any]:
 def bench_camera(scenes: int, seed: int = 9) -> dict[str, Any]:
     import cv2
 
+    from missions.bench.navsim import NavSim
     from robots.interfaces import Pose2D
     from robots.sim.people import Person
     from skills.perception.camera_people import CameraPeopleTracker, detect_faces, load_cascade
     from skills.perception.people_tracking import sensor_to_map
-    from tests.navsim import NavSim
 
     rng = np.random.default_rng(seed)
     cascade = load_cascade()
@@ -241,6 +241,12 @@ def bench_camera(scenes: int, seed: int = 9) -> dict[str, Any]:
         "false_detections_on_synthetic": false_on_synthetic,
         "ms_per_scene": round(1e3 * sim_seconds / scenes, 1),
     }
+
+
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The benches over their time target, then those no better than the paper."""
+    over = [r["bench"] for r in results if r.get("median_ms", 0) > r.get("target_ms", float("inf"))]
+    return over + [r["bench"] for r in results if r.get("better_than_paper") is False]
 
 
 def main(quick: bool = False) -> list[dict[str, Any]]:

@@ -205,6 +205,11 @@ def bench_memory(cache: Path, native: bool) -> dict[str, Any]:
     return result
 
 
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The benches whose speed-up is under their target ratio."""
+    return [r["bench"] for r in results if r.get("ratio", float("inf")) < r.get("target_ratio", 0)]
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     results = []
     with tempfile.TemporaryDirectory(prefix="botstage-bench-chat-") as folder:

@@ -25,14 +25,15 @@ from pathlib import Path
 from typing import Any
 
 from behaviors.engine import Engine
+from missions import MISSIONS_DIR
 from missions.runner import run
+from robots import PROFILES_DIR
 from robots.interfaces import Pose2D
 from robots.profile import load_profile
 from skills.nav.ekf import wrap
 from skills.nav.localization import Localizer
 
-ROOT = Path(__file__).resolve().parent.parent.parent
-MISSION = ROOT / "missions/chefbot_delivery.yaml"
+MISSION = MISSIONS_DIR / "chefbot_delivery.yaml"
 SEEDS = (1, 2, 3, 4, 5)
 
 
@@ -45,7 +46,7 @@ class Riders:
 
     def __call__(self, engine: Engine) -> None:
         if self.ekf is None:
-            profile, _, _ = load_profile(ROOT / "robots/profiles/chefbot.yaml")
+            profile, _, _ = load_profile(PROFILES_DIR / "chefbot.yaml")
             devices = engine.interfaces
             self.odometry = devices["odometry"]
             self.ekf = Localizer.for_devices({"odometry": devices["odometry"], "imu": devices["imu"]}, None, profile)
@@ -104,6 +105,11 @@ def bench_seed(seed: int, folder: Path) -> dict[str, Any]:
             "map": [summary["localization"]["final_error_cm"], summary["localization"]["final_error_deg"]],
         },
     }
+
+
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The seeds with which an order failed."""
+    return [str(r["seed"]) for r in results if "seed" in r and r["failed"]]
 
 
 def main(quick: bool = False) -> list[dict[str, Any]]:

@@ -254,6 +254,11 @@ def bench_timeouts(ticks: int, repeats: int) -> dict[str, Any]:
     }
 
 
+def missed(results: list[dict[str, Any]]) -> list[str]:
+    """The benches whose engine cost over the baseline is above its target."""
+    return [r["bench"] for r in results if r.get("ratio", 0) > r.get("target", float("inf"))]
+
+
 def main(quick: bool = False) -> list[dict[str, Any]]:
     ticks, repeats, triggers = (20, 3, 400) if quick else (100, 15, 1500)
     results = [

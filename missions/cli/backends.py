@@ -1,0 +1,92 @@
+"""Backends and run observers on the command line: what is installed, and the options that pick them."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from rich.table import Table
+
+from missions.cli.common import _fail, _stderr, console
+
+if TYPE_CHECKING:
+    from robots.backend import Backend, OpenRequest
+
+
+def backend_help() -> str:
+    """The --backend help: every installed backend with its description."""
+    from robots.backend_registry import BackendRegistry
+
+    registry = BackendRegistry.default()
+    listed = "; ".join(f"{name} ({kind.description})" for name, kind in registry.items())
+    return f"the backend to run on ({listed}); `botstage backends` lists their options"
+
+
+def observer_help() -> str:
+    """The --observe help: every installed observer."""
+    from missions.session.plugins import observer_registry
+
+    registry = observer_registry()
+    listed = "; ".join(f"{name} ({registry.description(name)})" for name in registry)
+    return f"watch the run with an installed observer, repeatable: {listed}"
+
+
+def backend_options(items: list[str]) -> dict[str, Any]:
+    """``--backend-opt key=value`` items as a mapping (values read as YAML scalars), or exit 2."""
+    from robots.backend import BackendError
+    from robots.backend_options import parse_assignments
+
+    try:
+        return parse_assignments(items)
+    except BackendError as exc:
+        raise _fail(f"error: {exc}", 2) from None
+
+
+def observers(names: list[str]) -> list[object]:
+    """A new instance of each named observer, or exit 2 naming the unknown one."""
+    from missions.session.plugins import UnknownPlugin, observer_registry
+
+    registry = observer_registry()
+    try:
+        return [registry.create(name) for name in names]
+    except UnknownPlugin as exc:
+        raise _fail(f"error: {exc}", 2) from None
+
+
+def open_backend(name: str, request: OpenRequest, items: list[str], port: str | None, robot: str) -> Backend:
+    """Backend ``name`` opened for ``request`` with the options of ``robot``'s profile, ``--port`` and
+    ``--backend-opt``; or exit 2 with the reason (located in the profile when it is there)."""
+    from robots.backend import BackendError
+    from robots.backend_options import OptionSources
+    from robots.backend_registry import BackendRegistry
+    from robots.located_yaml import load_document
+    from robots.profile import profile_path
+
+    path = profile_path(robot)
+    locations = load_document(path).locations if path is not None else None
+    given = OptionSources(backend_options(items), port=port)
+    try:
+        return BackendRegistry.default().open(name, request, given, locations)[1]
+    except BackendError as exc:
+        raise _fail(exc.lines(), 2) from None
+
+
+def _options(described: dict[str, Any]) -> str:
+    lines = []
+    for name, option in described["options"].items():
+        value = "required" if option["required"] else f"default {option['default']!r}"
+        lines.append(f"{name} ({option['type']}, {value}): {option['description']}")
+    return "\n".join(lines) or "-"
+
+
+def backends() -> None:
+    """List the backends `botstage run --backend` can open (built-in and plugins), with their options."""
+    from robots.backend_registry import BackendRegistry
+
+    registry = BackendRegistry.default()
+    table = Table("backend", "description", "clock", "options (--backend-opt, or the profile's backends:)", "from")
+    for name, kind in registry.items():
+        described = kind.describe()
+        clock = "simulated" if kind.simulated else "wall"
+        table.add_row(name, kind.description, clock, _options(described), registry.origin(name))
+    console.print(table)
+    _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in registry.problems])

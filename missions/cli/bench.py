@@ -1,0 +1,115 @@
+"""The bench verbs: each benchmark's figures (missions.bench), and what missed its target."""
+
+from __future__ import annotations
+
+import typer
+
+from missions.cli.common import _stderr
+
+bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks: figures and ratios against a baseline run alongside.")
+
+
+@bench_app.command("tick")
+def bench_tick(quick: bool = typer.Option(False, help="fewer repeats: a smoke run, not figures to quote")) -> None:
+    """Engine tick cost vs plain py_trees, machine trigger cost vs raw transitions, 10,000 sim ticks."""
+    from missions.bench import bench_tick as bench
+
+    over = bench.missed(bench.main(quick=quick))
+    if over and not quick:
+        _stderr([f"over target: {', '.join(over)}"])
+
+
+@bench_app.command("sim")
+def bench_sim(quick: bool = typer.Option(False, help="a shorter run: a smoke test, not figures to quote")) -> None:
+    """Simulation speed of the PeopleBot in the museum with 20 people and the laser at 10 Hz."""
+    from missions.bench import bench_sim as bench
+
+    slow = bench.missed(bench.main(quick=quick))
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
+
+
+@bench_app.command("nav")
+def bench_nav(quick: bool = typer.Option(False, help="fewer plans: a smoke test, not figures to quote")) -> None:
+    """Planning time on a 1000 x 1000-cell map; final pose accuracy (the paper's Table 2); pose drift on a loop."""
+    from missions.bench import bench_nav as bench
+
+    slow = bench.missed(bench.main(quick=quick))
+    if slow and not quick:
+        _stderr([f"over target: {', '.join(slow)}"])
+
+
+@bench_app.command("chat")
+def bench_chat(quick: bool = typer.Option(False, help="fewer repeats: a smoke test, not figures to quote")) -> None:
+    """Maya's brain: learning the AIML against loading the cached brain; reply latency; memory."""
+    from missions.bench import bench_chat as bench
+
+    slow = bench.missed(bench.main(quick=quick))
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
+
+
+@bench_app.command("crowd")
+def bench_crowd(quick: bool = typer.Option(False, help="fewer trials: a smoke test, not figures to quote")) -> None:
+    """Crowd centre-of-mass error against the simulator's truth (the paper's figure); cost per frame."""
+    from missions.bench import bench_crowd as bench
+
+    over = bench.missed(bench.main(quick=quick))
+    if over and not quick:
+        _stderr([f"target missed: {', '.join(over)}"])
+
+
+@bench_app.command("upload")
+def bench_upload(quick: bool = typer.Option(False, help="fewer photos: a smoke test, not figures to quote")) -> None:
+    """Photos through the durable outbox to the local gallery against a plain HTTP POST; the paper's 3.26 MB photo."""
+    from missions.bench import bench_upload as bench
+
+    slow = bench.missed(bench.main(quick=quick))
+    if slow and not quick:
+        _stderr([f"under target: {', '.join(slow)}"])
+
+
+@bench_app.command("entertainer")
+def bench_entertainer(quick: bool = typer.Option(False, help="one seed, 2 minutes: a smoke test")) -> None:
+    """The default mission's wall time for 10 simulated minutes (target < 60 s), on several seeds."""
+    from missions.bench import bench_entertainer as bench
+
+    slow = bench.missed(bench.main(quick=quick))
+    if slow and not quick:
+        raise typer.Exit(1)
+
+
+@bench_app.command("serial")
+def bench_serial(quick: bool = typer.Option(False, help="smaller buffers, fewer commands: a smoke test")) -> None:
+    """Chefbot's Launchpad link: lines parsed per second (parser alone and through a pty), command latency."""
+    from missions.bench import bench_serial as bench
+
+    missed = bench.missed(bench.main(quick=quick))
+    if missed and not quick:
+        _stderr([f"target missed: {', '.join(missed)}"])
+
+
+@bench_app.command("delivery")
+def bench_delivery(quick: bool = typer.Option(False, help="one seed: a smoke test, not figures to quote")) -> None:
+    """Chefbot's delivery mission: time per delivery; final pose error, odometry alone vs EKF vs map."""
+    from missions.bench import bench_delivery as bench
+
+    short = bench.missed(bench.main(quick=quick))
+    if short and not quick:
+        _stderr([f"orders failed with seeds: {', '.join(short)}"])
+
+
+@bench_app.command("speech")
+def bench_speech(
+    quick: bool = typer.Option(False, help="three voices, one speed, three conditions: a smoke test"),
+    tune: bool = typer.Option(False, help="sweep the recogniser's thresholds on the tuning voices instead"),
+) -> None:
+    """Command recognition rate per word (clean, white and pink noise at 20 and 10 dB), false accepts, RTF."""
+    from missions.bench import bench_speech as bench
+
+    results = bench.main(quick=quick, sweep=tune)
+    if not results and not tune:
+        raise typer.Exit(1)  # espeak-ng missing: said why
+    missed = bench.missed(results)
+    if missed and not quick:
+        _stderr([f"under target: {', '.join(missed)}"])

@@ -1,0 +1,174 @@
+"""Verbs on robots themselves: their skills, a board emulated for a driver, driving by keyboard."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+from rich.table import Table
+
+from missions.cli.common import _fail, _stderr, console
+
+
+def skills() -> None:
+    """List the skills the registry finds (built-in and plugins) with their contracts."""
+    from skills.registry import Registry
+
+    registry = Registry.default()
+    table = Table("skill", "inputs", "outputs", "outcomes", "from")
+    for name in registry:
+        info = registry.get(name).describe()
+        table.add_row(
+            name,
+            ", ".join(info["inputs"]) or "-",
+            ", ".join(info["outputs"]) or "-",
+            ", ".join(info["outcomes"]),
+            registry.origin(name),
+        )
+    console.print(table)
+    _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in registry.problems])
+
+
+def nodes() -> None:
+    """List the node kinds trees can use (built-in and plugins): what each takes and where it comes from."""
+    from behaviors.kinds import NodeKinds
+
+    kinds = NodeKinds.default()
+    table = Table("kind", "written", "options", "description", "from")
+    for name in kinds:
+        kind = kinds.get(name)
+        table.add_row(
+            name,
+            kind.written(),
+            ", ".join(sorted(kind.option_names() - {"child"})) or "-",
+            kind.description,
+            kinds.origin(name),
+        )
+    console.print(table)
+    _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in kinds.problems])
+
+
+def _robot_place(profile_name: str, world: str, start: str):
+    """A shipped or given profile, a map, and a start (a place of the map or "x,y,theta")."""
+    from missions.places import PlaceError, robot_place
+
+    try:
+        return robot_place(profile_name, world, start)
+    except PlaceError as exc:
+        raise _fail(exc.lines, 2) from None
+
+
+def emulate(
+    board: str = typer.Argument(..., help="the board to emulate: launchpad (Chefbot's Tiva C)"),
+    world: str = typer.Option("restaurant", help="the map the simulated robot drives on"),
+    start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
+    seed: int = typer.Option(0, help="the simulated world's seed"),
+    counter_start: int = typer.Option(0, help="the encoders' first count (near 2147483647 to test wrap-around)"),
+) -> None:
+    """Play a robot's board on a pseudo-terminal, driving the simulated robot; until Ctrl-C.
+
+    Connect a driver (or `miniterm.py`) to the path it prints. Faults, typed on standard input:
+    `garbage N`, `drop N`, `stall left|right|none`, `unplug SECONDS`, `reset`, `status`.
+    """
+    import threading
+
+    if board != "launchpad":
+        raise _fail(f"error: unknown board {board!r}; boards: launchpad", 2)
+    from missions.fault_console import FAULTS, apply_fault
+    from robots.emulators.launchpad import LaunchpadEmulator
+    from robots.sim.world import World
+
+    profile, grid, pose = _robot_place("chefbot", world, start)
+    emulator = LaunchpadEmulator(World(grid, profile, pose, seed), counter_start=counter_start).start()
+    console.print(
+        f"Launchpad emulator: connect to {emulator.path} (now {emulator.pty_path}), 115200 8N1", highlight=False
+    )
+    console.print(f"Ctrl-C stops; faults: {FAULTS}")
+    stop = threading.Event()
+
+    def faults() -> None:
+        for line in sys.stdin:
+            reply = apply_fault(emulator, line)
+            if reply is not None:
+                console.print(reply, highlight=False)
+        stop.wait()  # end of input: keep running until Ctrl-C
+
+    threading.Thread(target=faults, daemon=True).start()
+    try:
+        while not stop.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        emulator.close()
+
+
+def teleop(
+    robot: str = typer.Argument("chefbot", help="the robot's profile"),
+    backend: str = typer.Option("sim", help="the backend to drive (sim, emulator, hardware; `botstage backends`)"),
+    port: str | None = typer.Option(None, help="the robot's serial port, e.g. /dev/ttyACM0 (--backend-opt port=...)"),
+    backend_opt: list[str] = typer.Option(
+        [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"
+    ),
+    world: str = typer.Option("restaurant", help="the map (sim and emulator)"),
+    start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
+    seed: int = typer.Option(0, help="the simulated world's seed"),
+    rate_hz: float = typer.Option(10.0, "--rate", help="commands a second"),
+    linear_step: float = typer.Option(0.05, help="m/s a key adds"),
+    angular_step: float = typer.Option(0.2, help="rad/s a key adds"),
+) -> None:
+    """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits."""
+    from missions.cli.backends import open_backend
+    from missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
+    from robots.backend import OpenRequest
+    from robots.clock import WallClock
+
+    profile, grid, pose = _robot_place(robot, world, start)
+    clock = WallClock(rate_hz)
+    request = OpenRequest(profile, pose, clock, seed=seed, grid=grid)
+    robot_backend = open_backend(backend, request, backend_opt, port, robot)
+    devices = robot_backend.devices
+    if "drive" not in devices:
+        robot_backend.close()
+        raise _fail(f"error: robot {robot!r} has no drive", 2)
+    state = Teleop(profile.base.max_linear, profile.base.max_angular, linear_step, angular_step)
+    interactive = sys.stdin.isatty() and sys.stdout.isatty()
+
+    def show(line: str) -> None:
+        if interactive:
+            sys.stdout.write("\r\x1b[K" + line)
+            sys.stdout.flush()
+        else:
+            console.print(line, highlight=False)
+
+    try:
+        if interactive:
+            with TerminalKeys.opened() as keys:
+                console.print(HELP, highlight=False)  # once keys are read one by one: none typed is lost
+                run_teleop(
+                    devices["drive"],
+                    keys,
+                    clock,
+                    state,
+                    step=robot_backend.step,
+                    odometry=devices.get("odometry"),
+                    show=show,
+                )
+        else:
+            console.print(HELP, highlight=False)
+            run_teleop(
+                devices["drive"],
+                StreamKeys(sys.stdin),
+                clock,
+                state,
+                step=robot_backend.step,
+                odometry=devices.get("odometry"),
+                show=show,
+            )
+    except KeyboardInterrupt:
+        pass
+    finally:
+        robot_backend.close()
+    if interactive:
+        sys.stdout.write("\n")
+    console.print("stopped", highlight=False)

@@ -1,0 +1,194 @@
+"""Verbs on missions and their scenarios: check, print the schema, run, test, make a scenario."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import typer
+from rich.live import Live
+from rich.table import Table
+
+from missions import DEFAULT_MISSION
+from missions.cli.backends import backend_help, backend_options, observer_help, observers
+from missions.cli.common import _fail, _stderr, console
+
+scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")
+
+
+def validate(missions: list[Path] = typer.Argument(..., help="mission files to check")) -> None:
+    """Check missions without running them; errors as file:line:col, exit status 1 if any."""
+    from missions.check import check
+
+    failed = False
+    for path in missions:
+        checked = check(path)
+        _stderr([str(problem) for problem in checked.problems])
+        failed |= not checked.ok
+        if checked.ok:
+            console.print(f"{path}: ok")
+    if failed:
+        raise typer.Exit(1)
+
+
+def schema(
+    builtin: bool = typer.Option(
+        False, help="only the built-in skills and node kinds (as missions/mission.schema.json has)"
+    ),
+) -> None:
+    """Print the JSON Schema of mission files (for editor completion)."""
+    from behaviors.kinds import NodeKinds
+    from missions.schema import json_schema
+    from skills.registry import Registry
+
+    if builtin:
+        schema = json_schema(Registry.builtin(), NodeKinds.builtin())
+    else:
+        schema = json_schema(Registry.default(), NodeKinds.default())
+    sys.stdout.write(json.dumps(schema, indent=2) + "\n")
+
+
+def _live_progress(live: Live):
+    def show(snapshot) -> None:
+        p = snapshot()
+        table = Table.grid(padding=(0, 2))
+        speed = p.sim_time_s / p.wall_time_s if p.wall_time_s > 0 else 0.0
+        table.add_row("mission", p.mission)
+        table.add_row(
+            "time", f"{p.sim_time_s:.1f} s mission, {p.wall_time_s:.1f} s wall ({speed:.0f}×), {p.ticks} ticks"
+        )
+        table.add_row("state", p.state or "-")
+        table.add_row("running", "\n".join(p.running[:8]) or "-")
+        live.update(table)
+
+    return show
+
+
+def run(
+    mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the PeopleBot entertainer)"),
+    backend: str = typer.Option("sim", help=backend_help()),
+    port: str | None = typer.Option(None, help="the robot's serial port, e.g. /dev/ttyACM0 (--backend-opt port=...)"),
+    backend_opt: list[str] = typer.Option(
+        [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"
+    ),
+    observe: list[str] = typer.Option([], "--observe", metavar="NAME", help=observer_help()),
+    seed: int | None = typer.Option(None, help="random seed (default: the mission's)"),
+    until: float | None = typer.Option(None, help="stop after this many seconds of mission time"),
+    realtime: bool = typer.Option(False, help="pace the simulation at wall-clock speed"),
+    out: Path | None = typer.Option(None, help="run folder (default: runs/<mission>-<timestamp>/)"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no live display"),
+) -> None:
+    """Run a mission and write its run folder (trace.jsonl, summary.json, report.html)."""
+    from missions.runner import MissionInvalid, RunError
+    from missions.runner import run as run_mission
+
+    given = {
+        "backend": backend,
+        "seed": seed,
+        "until": until,
+        "realtime": realtime,
+        "out": out,
+        "port": port,
+        "backend_options": backend_options(backend_opt),
+        "observers": observers(observe),
+    }
+    try:
+        if quiet or not console.is_terminal:
+            result = run_mission(mission, **given)
+        else:
+            with Live(console=console, refresh_per_second=8, transient=True) as live:
+                result = run_mission(mission, progress=_live_progress(live), **given)
+    except MissionInvalid as exc:
+        raise _fail([str(p) for p in exc.problems]) from None
+    except RunError as exc:
+        raise _fail(exc.lines(), 2) from None
+    s = result.summary
+    console.print(
+        f"[bold]{s['mission']}[/]: outcome [bold]{result.outcome}[/]"
+        + (f" ({result.reason})" if result.reason else ""),
+        highlight=False,
+        soft_wrap=True,
+    )
+    console.print(
+        f"{s['ticks']} ticks, {s['sim_time_s']:g} s mission time in {s['wall_time_s']:g} s wall time; "
+        f"report {result.folder / 'report.html'}",
+        highlight=False,
+        soft_wrap=True,
+    )
+    for error in s.get("observer_errors", []):
+        _stderr([f"warning: observer {error}"])
+    if result.outcome == "interrupted":
+        raise typer.Exit(130)
+
+
+def test_scenarios(
+    paths: list[Path] = typer.Argument(None, help="scenario files or folders (default: missions/scenarios)"),
+    coverage: bool = typer.Option(False, "--coverage", help="print coverage per mission and write it"),
+    coverage_file: Path = typer.Option(Path("coverage.json"), help="where --coverage writes its figures"),
+) -> None:
+    """Run scenario tests without pytest; a failure prints its readable report and keeps its run
+    folder (the report names it). Exit 1 if any fails."""
+    from missions.coverage import Session, write
+    from missions.scenario_suite import SuiteError, run_suite, scenario_files
+
+    roots = paths or [Path("missions/scenarios")]
+    try:
+        files = scenario_files(roots)
+    except SuiteError as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    failed = 0
+    session = Session()
+    for path, result in run_suite(files):
+        session.add(result)
+        if result.passed:
+            console.print(f"[green]PASS[/] {path}", highlight=False, soft_wrap=True)
+        else:
+            failed += 1
+            console.print(f"[red]FAIL[/] {path}", highlight=False, soft_wrap=True)
+            _stderr([result.report(), ""])
+    if coverage:
+        reports = session.reports()
+        table = Table("mission", "runs", "nodes", "states", "transitions")
+        for report in reports:
+            f = report.figures()
+            table.add_row(
+                report.mission,
+                str(f["runs"]),
+                *(
+                    f"{f[k]['percent']:g}% ({f[k]['covered']}/{f[k]['total']})"
+                    for k in ("nodes", "states", "transitions")
+                ),
+            )
+        console.print(table)
+        for report in reports:
+            for kind, items in zip(("node", "state", "transition"), report.untested(), strict=True):
+                for name in items:
+                    console.print(f"  untested {kind}: {name}", highlight=False, soft_wrap=True)
+        write(reports, coverage_file)
+        console.print(f"coverage written to {coverage_file}", highlight=False, soft_wrap=True)
+    console.print(f"{len(files) - failed} passed, {failed} failed", highlight=False)
+    if failed:
+        raise typer.Exit(1)
+
+
+@scenario_app.command("from-trace")
+def scenario_from_trace(
+    trace: Path = typer.Argument(..., help="a recorded run's trace.jsonl (its summary.json beside it)"),
+    output: Path = typer.Option(..., "-o", "--output", help="the scenario file to write"),
+    mission: Path | None = typer.Option(None, help="the mission (default: the one summary.json names)"),
+) -> None:
+    """Turn a recorded run into a regression scenario that replays its skill outcomes."""
+    from missions.scenario import from_trace
+
+    try:
+        spec = from_trace(trace, output, mission)
+    except (OSError, ValueError, KeyError) as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    calls = sum(c.get("times", 1) for v in spec["mocks"].values() for c in v)
+    console.print(
+        f"wrote {output}: {calls} recorded calls of {len(spec['mocks'])} skills, "
+        f"{len(spec['expect']['states'])} states expected",
+        highlight=False,
+        soft_wrap=True,
+    )
