@@ -25,7 +25,9 @@ from pydantic import ValidationError
 from behaviors.blackboard import BlackboardError, normalise_key
 from behaviors.builder import Builder, KeyUsage, SpecError, SpecPath, did_you_mean
 from behaviors.engine import Engine
+from behaviors.kinds import NodeKinds
 from behaviors.machine import MachinePlan
+from behaviors.render import Item, describe
 from missions.loader import Loaded, Location, Locations, Problem, load
 from missions.schema import Mission, key_spec, parse_type
 from robots.clock import SimClock
@@ -42,6 +44,9 @@ class Checked:
     key_types: dict[str, Any] = field(default_factory=dict)
     key_defaults: dict[str, Any] = field(default_factory=dict)
     keys_used: set[str] = field(default_factory=set)  # read or written by what the mission runs
+    # what it was checked with: whatever builds it next (the run, its report, pictures) uses the same
+    registry: Registry | None = None
+    kinds: NodeKinds | None = None
 
     @property
     def ok(self) -> bool:
@@ -64,17 +69,19 @@ class _Collector:
 INTERNAL = "internal error while checking"
 
 
-def check(path: str | Path, registry: Registry | None = None) -> Checked:
+def check(path: str | Path, registry: Registry | None = None, kinds: NodeKinds | None = None) -> Checked:
     """Load and check a mission file; never raises for a bad mission.
 
     A bug in the checker itself is reported as a located problem too (and asks to be reported),
     never as a traceback in the user's face.
     """
     path = Path(path)
-    return _safely(path, Location(str(path), 1, 1), lambda: _check(load(path), path, registry))
+    return _safely(path, Location(str(path), 1, 1), lambda: _check(load(path), path, registry, kinds))
 
 
-def check_loaded(loaded: Loaded, path: str | Path, registry: Registry | None = None) -> Checked:
+def check_loaded(
+    loaded: Loaded, path: str | Path, registry: Registry | None = None, kinds: NodeKinds | None = None
+) -> Checked:
     """Check a mission already in memory, from any front end; never raises for a bad mission.
 
     ``path`` is where the mission comes from: it names a mission without a name, and relative
@@ -82,7 +89,7 @@ def check_loaded(loaded: Loaded, path: str | Path, registry: Registry | None = N
     """
     path = Path(path)
     where = loaded.locations.root or Location(str(path), 1, 1)
-    return _safely(path, where, lambda: _check(loaded, path, registry))
+    return _safely(path, where, lambda: _check(loaded, path, registry, kinds))
 
 
 def _safely(path: Path, where: Location, checking: Callable[[], Checked]) -> Checked:
@@ -93,7 +100,7 @@ def _safely(path: Path, where: Location, checking: Callable[[], Checked]) -> Che
         return Checked(path, Loaded(None, Locations(root=where), [], [path]), None, [problem])
 
 
-def _check(loaded: Loaded, path: Path, registry: Registry | None) -> Checked:
+def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKinds | None) -> Checked:
     out = _Collector(loaded)
     if loaded.data is None:
         return Checked(path, loaded, None, out.result())
@@ -101,11 +108,12 @@ def _check(loaded: Loaded, path: Path, registry: Registry | None) -> Checked:
     if not mission.name:
         mission = mission.model_copy(update={"name": path.stem})
     registry = registry or Registry.default()
-    checked = Checked(path, loaded, mission, [])
+    kinds = kinds or NodeKinds.default()
+    checked = Checked(path, loaded, mission, [], registry=registry, kinds=kinds)
     _check_keys(mission, checked, out)
     _check_robot(mission, path, registry, out)
     params = _check_skill_params(mission, registry, out)
-    engine = Engine(clock=SimClock(mission.rate_hz), registry=registry, seed=mission.seed)
+    engine = Engine(clock=SimClock(mission.rate_hz), registry=registry, seed=mission.seed, kinds=kinds)
     try:
         builder = engine.builder(mission.trees, mission.machines, params)
         root_path = _root_spec_path(mission, out)
@@ -341,6 +349,20 @@ def build_root(builder: Builder, mission: Mission, spec_path: SpecPath) -> py_tr
     if spec_path[0] == "machines":
         return builder.machine(mission.machines[spec_path[1]], name=str(spec_path[1]), spec_path=spec_path)
     return builder.named_tree(str(spec_path[1]))
+
+
+def describe_part(checked: Checked, spec_path: SpecPath | None = None) -> Item:
+    """What a valid mission runs (or its part at ``spec_path``) as pictures see it, built with the
+    skills and node kinds it was checked with: the one path for `tree`, `machine`, the report,
+    coverage and the Python API."""
+    mission = checked.mission
+    assert mission is not None and checked.ok
+    engine = Engine(clock=SimClock(mission.rate_hz), registry=checked.registry, kinds=checked.kinds)
+    try:
+        builder = engine.builder(mission.trees, mission.machines, mission.skill_params)
+        return describe(build_root(builder, mission, spec_path or root_spec_path(mission)))
+    finally:
+        engine.close()
 
 
 def _build(builder: Builder, mission: Mission, spec_path: SpecPath, out: _Collector) -> None:

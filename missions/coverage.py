@@ -14,11 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from behaviors.engine import Engine
-from behaviors.render import Item, describe
-from missions.check import build_root, check, root_spec_path
+from behaviors.render import Item
+from missions.check import check, describe_part
 from missions.loader import display_name
-from robots.clock import SimClock
 
 
 def _walk(item: Item) -> Iterator[Item]:
@@ -45,12 +43,7 @@ class Universe:
         spec = checked.mission
         if spec is None or not checked.ok:
             raise ValueError(f"{mission} is not a valid mission")
-        engine = Engine(clock=SimClock(spec.rate_hz))
-        try:
-            root = build_root(engine.builder(spec.trees, spec.machines, spec.skill_params), spec, root_spec_path(spec))
-            item = describe(root)
-        finally:
-            engine.close()
+        item = describe_part(checked)
         universe = cls()
         for it in _walk(item):
             if it.kind == "state":

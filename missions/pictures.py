@@ -6,21 +6,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from behaviors.engine import Engine
 from behaviors.render import (
     MACHINE_FORMATS,
     TREE_FORMATS,
     GraphvizMissing,
     Statuses,
-    describe,
     render,
     statuses_at,
 )
 from behaviors.trace import read_jsonl
-from missions.check import build_root, check, root_spec_path
+from missions.check import check, describe_part, root_spec_path
 from missions.coverage import untested_of
 from missions.loader import Problem
-from robots.clock import SimClock
 
 
 class InvalidMission(Exception):
@@ -87,12 +84,7 @@ def picture(
             raise PictureError(f"cannot use coverage {coverage}: {str(exc).strip(chr(34))}") from None
         statuses = statuses or Statuses()
         statuses.untested, statuses.untested_transitions = untested, untested_transitions
-    engine = Engine(clock=SimClock(spec.rate_hz))
     try:
-        root = build_root(engine.builder(spec.trees, spec.machines, spec.skill_params), spec, spec_path)
-        try:
-            return render(describe(root), fmt, statuses)
-        except GraphvizMissing as exc:
-            raise PictureError(str(exc)) from None
-    finally:
-        engine.close()
+        return render(describe_part(checked, spec_path), fmt, statuses)
+    except GraphvizMissing as exc:
+        raise PictureError(str(exc)) from None

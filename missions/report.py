@@ -21,11 +21,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from behaviors.engine import Engine
-from behaviors.render import GraphvizMissing, describe, graphviz, to_dot, to_text
-from missions.check import Checked, build_root, root_spec_path
+from behaviors.render import GraphvizMissing, graphviz, to_dot, to_text
+from missions.check import Checked, describe_part
 from missions.transcript import read_transcript
-from robots.clock import SimClock
 from skills.display import LAYOUTS
 
 MAX_ROWS = 2000
@@ -310,16 +308,9 @@ def layouts_section(folder: Path) -> str:
 
 
 def pictures(checked: Checked) -> str:
-    mission = checked.mission
-    assert mission is not None
-    engine = Engine(clock=SimClock(mission.rate_hz))
-    try:
-        root = build_root(
-            engine.builder(mission.trees, mission.machines, mission.skill_params), mission, root_spec_path(mission)
-        )
-        item = describe(root)
-    finally:
-        engine.close()
+    """The mission's picture, built with the skills and kinds it was checked with (a scenario's
+    mocks, ones registered in code)."""
+    item = describe_part(checked)
     try:
         svg = graphviz(to_dot(item), "svg").decode()
         svg = svg[svg.index("<svg") :]  # drop the XML prologue and doctype: inline in HTML

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from behaviors.engine import Engine
+from behaviors.kinds import NodeKinds
 from missions.session import (
     WALL_CLOCK_FIELDS,
     MissionInvalid,
@@ -58,6 +59,7 @@ def run(
     progress: ProgressCallback | None = None,
     progress_interval_s: float = 0.1,
     registry: Registry | None = None,
+    kinds: NodeKinds | None = None,
     blackboard: dict[str, Any] | None = None,
     before_tick: Callable[[Engine], None] | None = None,
     port: str | None = None,
@@ -67,7 +69,8 @@ def run(
 ) -> RunResult:
     """Check and run a mission.
 
-    Scenario tests pass a ``registry`` with mocks, ``blackboard`` overrides of initial values and
+    Scenario tests pass a ``registry`` with mocks (``kinds``: node kinds beyond the installed ones),
+    ``blackboard`` overrides of initial values and
     a ``before_tick`` hook (scripted events, `never` conditions); a hook may raise ``StopRun``.
     ``backend`` names an installed backend (``BackendRegistry``); wall-clock ones (``emulator``,
     ``hardware``) run in real time. Its options come from the robot profile's ``backends:``,
@@ -86,6 +89,7 @@ def run(
         realtime=realtime,
         out=out,
         registry=registry,
+        kinds=kinds,
         blackboard=blackboard,
         before_tick=before_tick,
         backend_options=backend_options,

@@ -11,11 +11,10 @@ from __future__ import annotations
 import difflib
 import importlib
 from collections.abc import Iterator
-from dataclasses import dataclass
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any
 
 from robots.backend import ENTRY_POINT_GROUP, Backend, BackendError, BackendKind, BackendOptions, OpenRequest
+from robots.plugins import PluginProblem, discover
 
 if TYPE_CHECKING:
     from robots.backend_options import OptionSources
@@ -29,10 +28,13 @@ BUILTIN = (
 DEFAULT = "sim"
 
 
-@dataclass(frozen=True, slots=True)
-class PluginProblem:
-    entry_point: str
-    reason: str
+def _not_a_kind(value: object) -> str:
+    ok = isinstance(value, type) and issubclass(value, BackendKind) and value.name
+    return "" if ok else "does not point to a BackendKind subclass with a name"
+
+
+def _name(value: object) -> object:
+    return getattr(value, "name", None)
 
 
 def _load(spec: str) -> Any:
@@ -82,33 +84,8 @@ class BackendRegistry:
 
     def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> None:
         """Register plugins; a broken plugin is recorded in ``problems``, never fatal."""
-        for ep in entry_points(group=group):
-            label = f"{ep.name} = {ep.value}"
-            try:
-                loaded = ep.load()
-            except Exception as exc:
-                self.problems.append(PluginProblem(label, f"import failed: {type(exc).__name__}: {exc}"))
-                continue
-            if not (isinstance(loaded, type) and issubclass(loaded, BackendKind) and loaded.name):
-                self.problems.append(PluginProblem(label, "does not point to a BackendKind subclass with a name"))
-                continue
-            if loaded.name != ep.name:
-                self.problems.append(
-                    PluginProblem(label, f"entry point name differs from the backend's name {loaded.name!r}")
-                )
-                continue
-            known = self._kinds.get(loaded.name)
-            if known is not None:
-                if type(known) is not loaded:  # the same class again (a built-in's own entry point) is fine
-                    self.problems.append(
-                        PluginProblem(label, f"backend {loaded.name!r} already comes from {self._origin[loaded.name]}")
-                    )
-                continue
-            dist = getattr(ep, "dist", None)
-            try:
-                self.register(loaded, origin=f"plugin {dist.name if dist else ep.value}")
-            except Exception as exc:
-                self.problems.append(PluginProblem(label, f"cannot be registered: {type(exc).__name__}: {exc}"))
+        for plugin in discover(group, self.problems, what="backend", problem_of=_not_a_kind, name_of=_name):
+            plugin.register(lambda kind, origin: self.register(kind, origin=origin), self.problems)
 
     def get(self, name: str) -> BackendKind:
         """The kind named ``name``; an unknown name's error lists what is installed."""

@@ -14,10 +14,11 @@ from __future__ import annotations
 import difflib
 import importlib
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
-from importlib.metadata import entry_points
 
+from robots.plugins import PluginProblem, discover
 from skills.base import Skill
+
+__all__ = ["ENTRY_POINT_GROUP", "PluginProblem", "Registry", "UnknownSkillError", "suggest"]
 
 ENTRY_POINT_GROUP = "botstage.skills"
 BUILTIN_MODULES = (
@@ -58,10 +59,13 @@ def suggest(name: str, known: Iterable[str]) -> str | None:
     return close[0] if close else None
 
 
-@dataclass(frozen=True, slots=True)
-class PluginProblem:
-    entry_point: str
-    reason: str
+def _not_a_skill(value: object) -> str:
+    ok = isinstance(value, type) and issubclass(value, Skill) and value.name
+    return "" if ok else "does not point to a Skill subclass with a name"
+
+
+def _name(value: object) -> object:
+    return getattr(value, "name", None)
 
 
 class Registry:
@@ -105,28 +109,8 @@ class Registry:
 
     def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> None:
         """Register plugins; a broken plugin is recorded in ``problems``, never fatal."""
-        for ep in entry_points(group=group):
-            label = f"{ep.name} = {ep.value}"
-            try:
-                cls = ep.load()
-            except Exception as exc:
-                self.problems.append(PluginProblem(label, f"import failed: {type(exc).__name__}: {exc}"))
-                continue
-            if not (isinstance(cls, type) and issubclass(cls, Skill) and cls.name):
-                self.problems.append(PluginProblem(label, "does not point to a Skill subclass with a name"))
-                continue
-            if cls.name != ep.name:
-                self.problems.append(
-                    PluginProblem(label, f"entry point name differs from the skill's name {cls.name!r}")
-                )
-                continue
-            if cls.name in self._skills and self._skills[cls.name] is not cls:
-                self.problems.append(
-                    PluginProblem(label, f"skill {cls.name!r} already comes from {self._origin[cls.name]}")
-                )
-                continue
-            dist = getattr(ep, "dist", None)
-            self.register(cls, origin=f"plugin {dist.name if dist else ep.value}")
+        for plugin in discover(group, self.problems, what="skill", problem_of=_not_a_skill, name_of=_name):
+            plugin.register(lambda cls, origin: self.register(cls, origin=origin), self.problems)
 
     def get(self, name: str) -> type[Skill]:
         try:

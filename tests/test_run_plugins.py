@@ -141,7 +141,7 @@ def test_a_plugin_backend_observer_and_service_come_from_entry_points(toy_plugin
     assert reasons == {"hookless": "has none of the observer hooks (started, event, before_tick, after_tick, finished)"}
     services = service_registry()
     assert list(services)[-1] == "horn"
-    assert [p.reason for p in services.problems] == ["entry point name differs from the service's 'horn'"]
+    assert [p.reason for p in services.problems] == ["entry point name differs from the service's name 'horn'"]
 
     tally = observers.create("tally")
     result = run(

@@ -110,3 +110,24 @@ def test_invalid_missions_and_backends_are_refused_before_anything_moves(tmp_pat
     assert result.returncode == 2
     assert result.stderr.startswith("error: unknown backend 'gpu'; installed: sim (the built-in simulator")
     assert "; emulator (" in result.stderr and "; hardware (" in result.stderr and result.stderr.count("\n") == 1
+
+
+def test_a_run_with_a_skill_registered_in_code_writes_its_report(tmp_path: Path) -> None:
+    """The report's picture is built with the run's registry, not the default one."""
+    from skills.base import Outcome, Skill
+    from skills.registry import Registry
+
+    class Nod(Skill):
+        name = "nod"
+
+        def run(self, ctx):
+            yield
+            return Outcome.success()
+
+    mission = tmp_path / "nod.yaml"
+    mission.write_text("name: nod\ntrees:\n  main:\n    sequence: [nod, {wait: {duration: 0.2}}]\n")
+    registry = Registry.default()
+    registry.register(Nod)
+    result = run(mission, registry=registry, out=tmp_path / "run")
+    assert result.outcome == "success"
+    assert "nod" in (tmp_path / "run" / "report.html").read_text()

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Iterable, Iterator
-from importlib.metadata import entry_points
 
 from behaviors.kinds.base import NodeKind
-from skills.registry import PluginProblem
+from robots.plugins import PluginProblem, discover
 
 ENTRY_POINT_GROUP = "botstage.nodes"
 BUILTIN_MODULES = ("behaviors.kinds.composites", "behaviors.kinds.decorators", "behaviors.kinds.leaves")
@@ -25,6 +24,14 @@ BUILTIN_MODULES = ("behaviors.kinds.composites", "behaviors.kinds.decorators", "
 
 def _is_kind(value: object) -> bool:
     return isinstance(value, type) and issubclass(value, NodeKind) and bool(value.name)
+
+
+def _not_a_kind(value: object) -> str:
+    return "" if _is_kind(value) else "does not point to a NodeKind subclass with a name"
+
+
+def _name(value: object) -> object:
+    return getattr(value, "name", None)
 
 
 class NodeKinds:
@@ -66,29 +73,8 @@ class NodeKinds:
 
     def load_entry_points(self, group: str = ENTRY_POINT_GROUP) -> None:
         """Register plug-in kinds; a broken plug-in is recorded in ``problems``, never fatal."""
-        for ep in entry_points(group=group):
-            label = f"{ep.name} = {ep.value}"
-            try:
-                value = ep.load()
-            except Exception as exc:
-                self.problems.append(PluginProblem(label, f"import failed: {type(exc).__name__}: {exc}"))
-                continue
-            if not _is_kind(value):
-                self.problems.append(PluginProblem(label, "does not point to a NodeKind subclass with a name"))
-                continue
-            if value.name != ep.name:
-                self.problems.append(
-                    PluginProblem(label, f"entry point name differs from the kind's name {value.name!r}")
-                )
-                continue
-            if value.name in self._kinds:
-                if type(self._kinds[value.name]) is not value:
-                    self.problems.append(
-                        PluginProblem(label, f"node kind {value.name!r} already comes from {self._origin[value.name]}")
-                    )
-                continue
-            dist = getattr(ep, "dist", None)
-            self.register(value, origin=f"plugin {dist.name if dist else ep.value}")
+        for plugin in discover(group, self.problems, what="kind", problem_of=_not_a_kind, name_of=_name):
+            plugin.register(lambda kind, origin: self.register(kind, origin=origin), self.problems)
 
     def get(self, name: str) -> NodeKind:
         return self._kinds[name]

@@ -22,7 +22,7 @@ from missions.api.machine import StateMachine
 from missions.api.nodes import NodeLike, as_node
 from missions.api.specs import machine_of, node_of
 from missions.api.where import caller, caller_file
-from missions.check import Checked, build_root, check_loaded, root_spec_path
+from missions.check import Checked, check_loaded, describe_part, root_spec_path
 from missions.loader import Loaded, Location, Problem, load
 
 if TYPE_CHECKING:  # the runner loads the simulator and friends: only when a mission runs
@@ -295,9 +295,7 @@ class Mission:
         """A picture of what runs (or of its machine, or of a named tree), as ``botstage tree`` /
         ``botstage machine`` draw it: text for ascii, unicode, dot, svg, mermaid and json, bytes
         for png. ``fmt`` defaults to unicode for trees, ascii for machines."""
-        from behaviors.engine import Engine
-        from behaviors.render import MACHINE_FORMATS, TREE_FORMATS, describe, render
-        from robots.clock import SimClock
+        from behaviors.render import MACHINE_FORMATS, TREE_FORMATS, render
 
         fmt = fmt or ("ascii" if machine else "unicode")
         formats = MACHINE_FORMATS if machine else TREE_FORMATS
@@ -305,7 +303,8 @@ class Mission:
             raise ValueError(f"unknown format {fmt!r}; use one of {', '.join(formats)}")
         if tree is not None and machine:
             raise ValueError("draw a named tree or the machine, not both")
-        spec = self.checked(registry).mission
+        checked = self.checked(registry)
+        spec = checked.mission
         assert spec is not None
         if tree is not None:
             if tree not in spec.trees:
@@ -315,12 +314,7 @@ class Mission:
             spec_path = ("machine",)
         else:  # like `botstage machine` on a mission without one: the tree it runs
             spec_path = root_spec_path(spec)  # type: ignore[assignment]
-        engine = Engine(clock=SimClock(spec.rate_hz), registry=registry)
-        try:
-            root = build_root(engine.builder(spec.trees, spec.machines, spec.skill_params), spec, spec_path)
-            picture = render(describe(root), fmt)
-        finally:
-            engine.close()
+        picture = render(describe_part(checked, spec_path), fmt)
         return picture if fmt == "png" else picture.decode()
 
     def run(self, *, out: Path | None = None, registry: Registry | None = None, **options: Any) -> RunResult:

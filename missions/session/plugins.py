@@ -19,11 +19,10 @@ import contextlib
 import difflib
 import importlib
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
-from importlib.metadata import entry_points
 from typing import Any
 
 from missions.session.observer import HOOKS
+from robots.plugins import PluginProblem, discover
 
 OBSERVERS_GROUP = "botstage.observers"
 SERVICES_GROUP = "botstage.services"
@@ -38,10 +37,8 @@ BUILTIN_SERVICES = (
 Factory = Callable[[], Any]
 
 
-@dataclass(frozen=True, slots=True)
-class PluginProblem:
-    entry_point: str
-    reason: str
+def _name(factory: object) -> object:
+    return getattr(factory, "name", None)
 
 
 class UnknownPlugin(LookupError):
@@ -93,30 +90,15 @@ class PluginRegistry:
 
     def load_entry_points(self) -> None:
         """Register plugins; a broken plugin is recorded in ``problems``, never fatal."""
-        for ep in entry_points(group=self.group):
-            label = f"{ep.name} = {ep.value}"
-            try:
-                factory = ep.load()
-            except Exception as exc:
-                self.problems.append(PluginProblem(label, f"import failed: {type(exc).__name__}: {exc}"))
-                continue
-            wrong = self.check(factory) if self.check is not None and callable(factory) else ""
-            if not callable(factory) or wrong:
-                self.problems.append(PluginProblem(label, wrong or f"does not point to a {self.what} class or factory"))
-                continue
-            named = getattr(factory, "name", ep.name)
-            if isinstance(named, str) and named and named != ep.name:
-                self.problems.append(PluginProblem(label, f"entry point name differs from the {self.what}'s {named!r}"))
-                continue
-            known = self._factories.get(ep.name)
-            if known is not None:
-                if known is not factory:  # the same object again (a built-in's own entry point) is fine
-                    self.problems.append(
-                        PluginProblem(label, f"{ep.name!r} already comes from {self._origin[ep.name]}")
-                    )
-                continue
-            dist = getattr(ep, "dist", None)
-            self.register(ep.name, factory, origin=f"plugin {dist.name if dist else ep.value}")
+        for plugin in discover(self.group, self.problems, what=self.what, problem_of=self._problem_of, name_of=_name):
+            plugin.register(
+                lambda factory, origin, name=plugin.name: self.register(name, factory, origin=origin), self.problems
+            )
+
+    def _problem_of(self, factory: Any) -> str:
+        if not callable(factory):
+            return f"does not point to a {self.what} class or factory"
+        return self.check(factory) if self.check is not None else ""
 
     def get(self, name: str) -> Factory:
         try:

@@ -24,6 +24,7 @@ import py_trees
 from py_trees.common import Status
 
 from behaviors.engine import Engine
+from behaviors.kinds import NodeKinds
 from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path, start_pose
 from missions.schema import Mission
@@ -68,6 +69,7 @@ class RunSession:
         realtime: bool = False,
         out: Path | None = None,
         registry: Registry | None = None,
+        kinds: NodeKinds | None = None,
         blackboard: dict[str, Any] | None = None,
         before_tick: Callable[[Engine], None] | None = None,
         backend_options: Mapping[str, Any] | None = None,
@@ -81,6 +83,7 @@ class RunSession:
         self.realtime = realtime
         self.out = out
         self.registry = registry
+        self.kinds = kinds
         self.overrides = blackboard
         self.given = OptionSources(backend_options or {}, port=port)
         self.backends = backends if backends is not None else BackendRegistry.default()
@@ -163,7 +166,7 @@ class RunSession:
 
     def check(self) -> None:
         """The mission, the backend and its options: every refusal comes before anything moves."""
-        checked = check(self.path, self.registry)
+        checked = check(self.path, self.registry, self.kinds)
         if not checked.ok:
             raise MissionInvalid(checked.problems)
         self.checked = checked
@@ -259,7 +262,12 @@ class RunSession:
         self.trace = Trace(self.clock, self._sink, keep=False)
         self.hooks.subscribe(self.trace)
         self.engine = Engine(
-            clock=self.clock, seed=self.seed, trace=self.trace, registry=self.registry, interfaces=self.interfaces
+            clock=self.clock,
+            seed=self.seed,
+            trace=self.trace,
+            registry=self.checked.registry,
+            kinds=self.checked.kinds,
+            interfaces=self.interfaces,
         )
         self.root = build(self.engine, self.checked, self.overrides)
         self.engine.set_root(self.root)
