@@ -34,12 +34,11 @@ from behaviors.machine import MachineBehaviour, MachinePlan
 from behaviors.machine_plan import MachinePlanner
 from behaviors.runtime import Runtime
 from behaviors.skill_behaviour import SkillBehaviour
-from behaviors.skill_binding import SkillBinder, parse_binding, parse_output, success_outcomes
+from behaviors.skill_binding import SkillBinder, success_outcomes
 from behaviors.suggest import did_you_mean
 from skills.expression import Expression, ExpressionError, compile_expression, key_of
 
-__all__ = ["Builder", "KeyUsage", "Scope", "SpecError", "SpecPath", "SpecProblem", "did_you_mean"]
-__all__ += ["parse_binding", "parse_output", "remap_condition", "remap_key"]
+__all__ = ["Builder", "KeyUsage", "Scope", "SpecError", "SpecPath", "SpecProblem", "remap_condition", "remap_key"]
 
 SpecPath = tuple[str | int, ...]
 COMMON_OPTIONS = frozenset({"name"})
@@ -292,13 +291,20 @@ class Builder:
                 self.problem(
                     scope.spec_path + (unknown[0],),
                     f"unknown node or skill {unknown[0]!r}",
-                    did_you_mean(unknown[0], [*self.kinds, *self.runtime.registry]),
+                    self._broken_plugin(unknown[0]) or did_you_mean(unknown[0], [*self.kinds, *self.runtime.registry]),
                 )
             else:
                 self.problem(scope.spec_path, "a node needs a kind (a skill, sequence, selector, ...)")
             return None
         self.problem(scope.spec_path, f"a node has exactly one kind, found {', '.join(map(repr, keys))}")
         return None
+
+    def _broken_plugin(self, name: object) -> str:
+        """Why a plug-in of this name is missing, if one failed to load."""
+        for problem in [*self.kinds.problems, *self.runtime.registry.problems]:
+            if problem.entry_point.split(" =")[0] == name:
+                return f"the plugin {problem.entry_point!r} failed to load: {problem.reason}"
+        return ""
 
     def _options(self, spec: Mapping[str, Any], key: str, kind: NodeKind, scope: Scope) -> Any:
         """The kind's options, validated; unknown and wrong ones are reported (with a suggestion)."""
@@ -347,8 +353,9 @@ class Builder:
             return True
         try:
             b.value = argument_adapter(kind.argument).validate_python(b.value)
-        except ValidationError:
-            self.problem(scope.spec_path + (b.key,), f"{b.key} needs {kind.argument_help}, got {b.value!r}")
+        except ValidationError as exc:
+            wanted = kind.argument_help or exc.errors()[0]["msg"].lower()
+            self.problem(scope.spec_path + (b.key,), f"{b.key} needs {wanted}, got {b.value!r}")
             return False
         return True
 

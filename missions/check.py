@@ -23,11 +23,12 @@ import py_trees
 from pydantic import ValidationError
 
 from behaviors.blackboard import BlackboardError, normalise_key
-from behaviors.builder import Builder, KeyUsage, SpecError, SpecPath, did_you_mean
+from behaviors.builder import Builder, KeyUsage, SpecError, SpecPath
 from behaviors.engine import Engine
 from behaviors.kinds import NodeKinds
 from behaviors.machine import MachinePlan
 from behaviors.render import Item, describe
+from behaviors.suggest import did_you_mean
 from missions.loader import Loaded, Location, Locations, Problem, load
 from missions.schema import Mission, key_spec, parse_type
 from robots.clock import SimClock

@@ -28,8 +28,7 @@ from missions.session import (
     run_folder,
     running_skills,
 )
-from missions.session.summary import summarise
-from robots.backend_registry import BackendRegistry
+from robots.backend_registry import DEFAULT, BackendRegistry
 from skills.registry import Registry
 
 __all__ = [
@@ -44,14 +43,13 @@ __all__ = [
     "run",
     "run_folder",
     "running_skills",
-    "summarise",
 ]
 
 
 def run(
     path: str | Path,
     *,
-    backend: str = "sim",
+    backend: str = DEFAULT,
     seed: int | None = None,
     until: float | None = None,
     realtime: bool = False,

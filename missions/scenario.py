@@ -45,11 +45,12 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from behaviors.blackboard import BlackboardError
-from behaviors.builder import did_you_mean
 from behaviors.engine import Engine
+from behaviors.suggest import did_you_mean
 from missions.gallery.service import set_gallery
 from missions.loader import Loaded, Location, Problem, load
 from missions.runner import MissionInvalid, RunError, StopRun, run
+from missions.session.observers import EventRecorder
 from skills.base import Outcome, Skill, SkillContext, SkillRun, type_name
 from skills.expression import EvaluationError, ExpressionError, compile_expression
 from skills.registry import Registry
@@ -376,6 +377,7 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
             if held:
                 raise StopRun(f"never-condition {condition.source!r} held at t={now:g} s")
 
+    recorder = EventRecorder()
     try:
         result = run(
             scenario.mission_path,
@@ -385,12 +387,13 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
             registry=mocked,
             blackboard=spec.blackboard,
             before_tick=before_tick,
+            observers=[recorder],
         )
     except MissionInvalid as exc:
         return Result(scenario, False, ["the mission is invalid:", *(str(p) for p in exc.problems)])
     except RunError as exc:
         return Result(scenario, False, [f"the mission cannot run: {exc}"])
-    events = [json.loads(line) for line in (result.folder / "trace.jsonl").read_text(encoding="utf-8").splitlines()]
+    events = recorder.events
     failures = list(_judge(spec.expect, result.summary, result.blackboard, result.reason, events))
     return Result(scenario, not failures, failures, result.folder, events)
 

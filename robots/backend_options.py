@@ -66,7 +66,7 @@ def gather(
         for key, value in profile.backends.get(kind.name, {}).items():
             where = locations.find(("backends", kind.name, key)) if locations is not None else None
             values[key] = Given(value, "the robot profile", where)
-    if given.port and "port" in kind.Options.model_fields:
+    if given.port:  # a backend without a port option says so, rather than ignoring it
         values["port"] = Given(given.port, "--port")
     for key, value in given.options.items():
         values[key] = Given(value, given.origin)

@@ -151,11 +151,45 @@ def test_a_profile_backends_section_must_be_a_mapping_of_mappings(tmp_path: Path
     assert str(problems[0]).startswith(f"{profile}:")
 
 
-def test_port_is_a_shortcut_used_only_by_backends_with_a_port() -> None:
+def test_port_is_a_shortcut_for_the_port_option_and_refused_where_there_is_none() -> None:
     hardware = BackendRegistry.default().get("hardware")
     given = OptionSources({"ready_timeout": 1}, port="/dev/ttyACM0")
     assert resolve(hardware, given=given).model_dump() == {"port": "/dev/ttyACM0", "ready_timeout": 1.0, "baud": 115200}
-    assert resolve(BackendRegistry.default().get("sim"), given=given.__class__(port="/dev/ttyACM0")).model_dump() == {}
+    with pytest.raises(BackendError, match=r"backend 'sim' has no option 'port' \(from --port"):
+        resolve(BackendRegistry.default().get("sim"), given=OptionSources(port="/dev/ttyACM0"))
+
+
+def test_a_profile_section_for_a_backend_not_installed_is_refused_where_it_is(tmp_path: Path) -> None:
+    mission = chefbot_with(tmp_path, "backends:\n  hardwre: {port: /dev/ttyACM0}\n")
+    with pytest.raises(RunError) as info:
+        run(mission, out=tmp_path / "r")
+    lines = info.value.lines()
+    row = next(i for i, text in enumerate((tmp_path / "mybot.yaml").read_text().splitlines(), 1) if "hardwre" in text)
+    assert lines[0] == f"{tmp_path / 'mybot.yaml'}:{row}:3: error: unknown backend 'hardwre' (did you mean 'hardware'?)"
+    assert lines[1].startswith("error: the robot profile configures backends not installed here")
+    assert not (tmp_path / "r").exists()
+
+
+def test_an_observer_or_service_that_cannot_be_made_is_an_error_not_a_traceback(tmp_path: Path) -> None:
+    from missions.session import RunSession
+    from missions.session.plugins import PluginError, PluginRegistry
+
+    class Broken:
+        def __init__(self) -> None:
+            raise RuntimeError("no horn fitted")
+
+        def open(self, session):
+            return {}
+
+        def close(self):
+            pass
+
+    services = PluginRegistry("botstage.services", "service")
+    services.register("horn", Broken)
+    with pytest.raises(PluginError, match="service 'horn' cannot be made: RuntimeError: no horn fitted"):
+        services.create("horn")
+    with pytest.raises(RunError, match="service 'horn' cannot be made"):
+        RunSession(DRIVE_DEMO, services=services, out=tmp_path / "r")
 
 
 def test_backends_share_one_protocol() -> None:

@@ -24,8 +24,8 @@ from skills.chat.learn import learn_files
 from skills.chat.persona import ALICE_DIR, MAYA_DIR, MAYA_PREDICATES, aiml_files
 from skills.chat.routing import COMMANDS, route
 from skills.converse import Converse
-from skills.dict_board import DictBoard as Board
 from skills.execution import SkillExecution
+from skills.testing import DictBoard as Board
 from skills.workers import Workers
 
 AIML_HEAD = '<?xml version="1.0" encoding="UTF-8"?>\n<aiml version="1.0.1">\n'

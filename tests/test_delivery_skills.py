@@ -22,10 +22,10 @@ from robots.profile import load_profile
 from robots.sim.backend import SimBackend
 from skills.base import Outcome, Skill, SkillContext, SkillLogger
 from skills.delivery.inbox import ACCEPTS, OrderError, OrderInbox, parse_order
-from skills.dict_board import DictBoard
 from skills.execution import SkillExecution
 from skills.monitors import Odometer, WatchBattery, WatchSonar
 from skills.orders import DropOrders, FinishOrder, TakeOrder
+from skills.testing import DictBoard
 from skills.wait_for import WaitFor
 from skills.workers import Workers
 

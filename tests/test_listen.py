@@ -19,11 +19,11 @@ from robots.interfaces import Pose2D
 from robots.profile import load_profile
 from robots.sim.backend import SimBackend
 from skills.base import Outcome, SkillContext, SkillLogger
-from skills.dict_board import DictBoard
 from skills.execution import SkillExecution
 from skills.listen import Listen
 from skills.registry import Registry
 from skills.speech.wav import read_wav
+from skills.testing import DictBoard
 from skills.workers import Workers
 
 DATA = Path(__file__).parent / "data" / "speech"

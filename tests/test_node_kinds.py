@@ -161,3 +161,19 @@ def test_sibling_names_are_made_unique_in_linear_time(make_engine) -> None:
     children += [{"wait": {"duration": 1}} for _ in range(3)]
     root = engine.builder().tree({"parallel": children})
     assert [c.name for c in root.children] == ["wait", "wait#2", "wait#3", "wait#5", "wait#4", "wait#6", "wait#7"]
+
+
+def test_an_unknown_kind_whose_plugin_failed_to_load_says_why(make_engine) -> None:
+    from robots.plugins import PluginProblem
+
+    kinds = NodeKinds.builtin()
+    kinds.problems.append(PluginProblem("unless = my_kit.kinds:Unless", "import failed: ModuleNotFoundError: no"))
+    engine = make_engine(kinds=kinds)
+    with pytest.raises(SpecError) as info:
+        engine.builder().tree({"unless": "estop", "child": "drive"})
+    (problem,) = info.value.problems
+    assert problem.message == "unknown node or skill 'unless'"
+    assert (
+        problem.hint
+        == "the plugin 'unless = my_kit.kinds:Unless' failed to load: import failed: ModuleNotFoundError: no"
+    )

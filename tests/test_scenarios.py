@@ -40,7 +40,9 @@ def test_a_wrong_expectation_fails_with_a_readable_diff(pytester: pytest.Pyteste
           states: [greeting, working/rest, stopped]
     """)
     )
-    result = pytester.runpytest("scenarios")
+    # in its own process: an in-process run drops the modules it imported (numpy.fft among them),
+    # and numpy refuses to load an extension module twice
+    result = pytester.runpytest_subprocess("scenarios")
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(
         [

@@ -10,8 +10,8 @@ from pydantic import BaseModel
 
 from robots.clock import SimClock
 from skills.base import In, NoParams, Out, Outcome, Skill, SkillContext, SkillLogger, SkillRun
-from skills.dict_board import DictBoard
 from skills.execution import SkillExecution
+from skills.testing import DictBoard
 from skills.workers import Workers
 
 

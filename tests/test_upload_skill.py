@@ -18,10 +18,10 @@ from missions.gallery.server import start_gallery
 from missions.runner import run as run_mission
 from robots.clock import SimClock
 from skills.base import Outcome, SkillContext, SkillLogger
-from skills.dict_board import DictBoard as Board
 from skills.execution import SkillExecution
 from skills.outbox.service import Uploads
 from skills.outbox.settings import TOKEN_ENV
+from skills.testing import DictBoard as Board
 from skills.upload import Upload
 from skills.workers import Workers
 from tests.test_outbox import TOKEN, make_photo, photos_in

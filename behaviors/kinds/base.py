@@ -36,7 +36,6 @@ CONDITION_SCHEMA: dict[str, Any] = {
     "type": "string",
     "description": "a condition, e.g. battery_pct > 20 and not estop",
 }
-SHAPES = ("sequence", "selector", "parallel", "decorator", "skill", "condition")
 
 
 class KindOptions(BaseModel):
@@ -54,7 +53,7 @@ class Described:
     """How pictures show a node: its title, its shape and lines of detail."""
 
     title: str
-    shape: str  # one of SHAPES
+    shape: str  # sequence, selector, parallel, decorator, skill or condition (how pictures draw it)
     details: list[str] = field(default_factory=list)
 
 

@@ -16,8 +16,8 @@ from robots.interfaces import Pose2D
 from robots.profile import Profile, load_profile
 from robots.sim.backend import SimBackend, map_path
 from skills.base import Outcome, Skill, SkillContext, SkillLogger
-from skills.dict_board import DictBoard as Board
 from skills.execution import SkillExecution
+from skills.testing import DictBoard as Board
 from skills.workers import Workers
 
 MAPS: dict[str, GridMap] = {}

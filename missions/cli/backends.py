@@ -43,12 +43,14 @@ def backend_options(items: list[str]) -> dict[str, Any]:
 
 def observers(names: list[str]) -> list[object]:
     """A new instance of each named observer, or exit 2 naming the unknown one."""
-    from missions.session.plugins import UnknownPlugin, observer_registry
+    from missions.session.plugins import PluginError, observer_registry
 
     registry = observer_registry()
+    if names:  # a plugin that failed to load may be the one asked for: say why
+        _stderr([f"warning: plugin {p.entry_point}: {p.reason}" for p in registry.problems])
     try:
         return [registry.create(name) for name in names]
-    except UnknownPlugin as exc:
+    except PluginError as exc:
         raise _fail(f"error: {exc}", 2) from None
 
 

@@ -7,7 +7,9 @@ import sys
 import typer
 from rich.table import Table
 
+from missions.cli.backends import backend_help
 from missions.cli.common import _fail, _stderr, console
+from robots.backend_registry import DEFAULT
 
 
 def skills() -> None:
@@ -105,7 +107,7 @@ def emulate(
 
 def teleop(
     robot: str = typer.Argument("chefbot", help="the robot's profile"),
-    backend: str = typer.Option("sim", help="the backend to drive (sim, emulator, hardware; `botstage backends`)"),
+    backend: str = typer.Option(DEFAULT, help=backend_help()),
     port: str | None = typer.Option(None, help="the robot's serial port, e.g. /dev/ttyACM0 (--backend-opt port=...)"),
     backend_opt: list[str] = typer.Option(
         [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"

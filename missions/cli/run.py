@@ -13,6 +13,7 @@ from rich.table import Table
 from missions import DEFAULT_MISSION
 from missions.cli.backends import backend_help, backend_options, observer_help, observers
 from missions.cli.common import _fail, _stderr, console
+from robots.backend_registry import DEFAULT
 
 scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")
 
@@ -67,7 +68,7 @@ def _live_progress(live: Live):
 
 def run(
     mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the PeopleBot entertainer)"),
-    backend: str = typer.Option("sim", help=backend_help()),
+    backend: str = typer.Option(DEFAULT, help=backend_help()),
     port: str | None = typer.Option(None, help="the robot's serial port, e.g. /dev/ttyACM0 (--backend-opt port=...)"),
     backend_opt: list[str] = typer.Option(
         [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"

@@ -70,6 +70,19 @@ class ReportObserver:
         write_report(session.folder, session.checked, summary)
 
 
+class EventRecorder:
+    """Keeps every trace event of a run in memory as it happens (what a scenario judges, and
+    what coverage counts), so nothing reads the trace file back."""
+
+    name = "recorder"
+
+    def __init__(self) -> None:
+        self.events: list[dict[str, Any]] = []
+
+    def event(self, record: dict[str, Any]) -> None:
+        self.events.append(record)
+
+
 class BeforeTickHook:
     """A scenario's ``before_tick(engine)``: scripted events and `never` conditions (may raise StopRun)."""
 

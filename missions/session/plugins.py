@@ -41,7 +41,11 @@ def _name(factory: object) -> object:
     return getattr(factory, "name", None)
 
 
-class UnknownPlugin(LookupError):
+class PluginError(LookupError):
+    """A named observer or service cannot be had: unknown, or its factory failed."""
+
+
+class UnknownPlugin(PluginError):
     pass
 
 
@@ -111,7 +115,11 @@ class PluginRegistry:
 
     def create(self, name: str) -> Any:
         """A new instance of ``name`` (one per run); the instance knows its registered name."""
-        instance = self.get(name)()
+        factory = self.get(name)
+        try:
+            instance = factory()
+        except Exception as exc:  # a plugin's bug: said with its name, never a traceback
+            raise PluginError(f"{self.what} {name!r} cannot be made: {type(exc).__name__}: {exc}") from exc
         if not getattr(instance, "name", ""):
             with contextlib.suppress(AttributeError):  # a factory's object without a settable name
                 instance.name = name

@@ -25,6 +25,7 @@ from py_trees.common import Status
 
 from behaviors.engine import Engine
 from behaviors.kinds import NodeKinds
+from behaviors.suggest import did_you_mean
 from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path, start_pose
 from missions.schema import Mission
@@ -38,7 +39,7 @@ from missions.session.observers import (
     ReportObserver,
     TranscriptObserver,
 )
-from missions.session.plugins import PluginRegistry, service_registry
+from missions.session.plugins import PluginError, PluginRegistry, service_registry
 from missions.session.result import RunResult
 from missions.session.summary import SummaryFileObserver, SummaryObserver
 from robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest
@@ -48,7 +49,7 @@ from robots.clock import Clock, SimClock, WallClock
 from robots.gridmap import GridMap
 from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
-from robots.located_yaml import Locations
+from robots.located_yaml import Locations, Problem
 from robots.profile import Profile, load_profile, profile_path
 from robots.sim.backend import known_maps, map_path
 from skills.registry import Registry
@@ -88,7 +89,10 @@ class RunSession:
         self.given = OptionSources(backend_options or {}, port=port)
         self.backends = backends if backends is not None else BackendRegistry.default()
         services = services if services is not None else service_registry()
-        self.services = [services.create(name) for name in services]
+        try:
+            self.services = [services.create(name) for name in services]
+        except PluginError as exc:
+            raise RunError(str(exc)) from exc
         builtin = [services.origin(name) == "builtin" for name in services]
         self.hooks = self._hooks(before_tick, observers, builtin)
         self._seed, self._until = seed, until
@@ -184,10 +188,24 @@ class RunSession:
         self.until = mission.until if self._until is None else self._until
         self._robot = self._place_robot()
         profile, locations = (self._robot[0], self._robot[1]) if self._robot is not None else (None, None)
+        if profile is not None and locations is not None:
+            self._check_profile_backends(profile, locations)
         try:
             self.options = resolve(self.kind, profile, locations, self.given)
         except BackendError as exc:
             raise RunError(exc.message, exc.problems) from None
+
+    def _check_profile_backends(self, profile: Profile, locations: Locations) -> None:
+        """The profile's `backends:` sections name installed backends: a misspelt one would be ignored."""
+        installed = list(self.backends)
+        unknown = [
+            Problem(locations.find(("backends", name)), f"unknown backend {name!r}", did_you_mean(name, installed))
+            for name in profile.backends
+            if name not in installed
+        ]
+        if unknown:
+            listed = ", ".join(installed)
+            raise RunError(f"the robot profile configures backends not installed here (installed: {listed})", unknown)
 
     def _place_robot(self) -> tuple[Profile, Locations, GridMap, Pose2D] | None:
         """The mission's robot, map and start; None for a robot-less mission."""

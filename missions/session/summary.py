@@ -54,15 +54,6 @@ def artefacts(folder: Path, also: Iterable[str] = ()) -> list[str]:
     return sorted(found | set(also))
 
 
-def summarise(folder: Path, **fields: Any) -> dict[str, Any]:
-    """summary.json's core from a finished run's trace.jsonl (what the observer counts live)."""
-    counts = TraceCounts()
-    with (folder / "trace.jsonl").open(encoding="utf-8") as trace:
-        for line in trace:
-            counts.add(json.loads(line))
-    return core(folder, counts, fields)
-
-
 def core(folder: Path, counts: TraceCounts, fields: Mapping[str, Any]) -> dict[str, Any]:
     return {
         **{k: fields[k] for k in CORE},

@@ -81,8 +81,5 @@ class SerialBackend:
     def write_results(self, folder: Path) -> None:
         """A real robot's true path is unknown: no trajectory.csv (odometry is in the summary)."""
 
-    def write_trajectory(self, path: Path) -> None:
-        """A real robot's true path is unknown: no trajectory.csv (odometry is in the summary)."""
-
     def summary(self) -> dict[str, Any]:
         return {**self.base.summary(), "not_connected": self.not_connected}

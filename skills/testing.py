@@ -1,5 +1,5 @@
-"""A plain blackboard for running a skill outside the engine (the skill's BlackboardView): the
-benchmarks' and the tests' harnesses drive skills with it, without a tree around them."""
+"""For testing a skill on its own, without a tree around it (a plugin author's unit tests, and
+botstage's own tests and benchmarks): a plain dict as the skill's blackboard view."""
 
 from __future__ import annotations
 
@@ -7,6 +7,8 @@ from typing import Any
 
 
 class DictBoard:
+    """The ``ctx.blackboard`` a skill sees, as a dict (``values``) a test can read and preset."""
+
     def __init__(self) -> None:
         self.values: dict[str, Any] = {}
 
