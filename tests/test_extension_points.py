@@ -6,21 +6,19 @@ observer sees every trace event of the run."""
 
 from __future__ import annotations
 
-import base64
-import hashlib
 import json
 import os
 import re
 import subprocess
 import sys
 import tomllib
-import zipfile
 from pathlib import Path
 
 import pytest
 
+from tests.tools import install_wheel
+
 ROOT = Path(__file__).resolve().parent.parent
-DIST = "my_kit-0.1.0"
 
 MISSION = """\
 name: kit_demo
@@ -82,32 +80,13 @@ def readme_package() -> tuple[dict[str, str], str]:
     return files, entry_points
 
 
-def build_wheel(directory: Path) -> Path:
-    sources, entry_points = readme_package()
-    files = {"my_kit/__init__.py": "", **sources}
-    files[f"{DIST}.dist-info/METADATA"] = "Metadata-Version: 2.1\nName: my-kit\nVersion: 0.1.0\n"
-    files[f"{DIST}.dist-info/WHEEL"] = "Wheel-Version: 1.0\nGenerator: test\nRoot-Is-Purelib: true\nTag: py3-none-any\n"
-    files[f"{DIST}.dist-info/entry_points.txt"] = entry_points
-    record = []
-    for name, text in files.items():
-        digest = base64.urlsafe_b64encode(hashlib.sha256(text.encode()).digest()).rstrip(b"=").decode()
-        record.append(f"{name},sha256={digest},{len(text.encode())}")
-    record.append(f"{DIST}.dist-info/RECORD,,")
-    files[f"{DIST}.dist-info/RECORD"] = "\n".join(record) + "\n"
-    wheel = directory / f"{DIST.replace('-', '-')}-py3-none-any.whl"
-    with zipfile.ZipFile(wheel, "w") as zf:
-        for name, text in files.items():
-            zf.writestr(name, text)
-    return wheel
-
-
 @pytest.fixture(scope="module")
 def kit(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     """The kit installed into its own site folder; the environment that puts it on the path."""
-    folder = tmp_path_factory.mktemp("kit")
-    target = folder / "site"
-    command = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-index", "--target", str(target)]
-    subprocess.run([*command, str(build_wheel(folder))], check=True)
+    sources, entry_points = readme_package()
+    target = install_wheel(
+        tmp_path_factory.mktemp("kit"), "my-kit", {"my_kit/__init__.py": "", **sources}, entry_points
+    )
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(target), str(ROOT)]), "COLUMNS": "250"}
 
 

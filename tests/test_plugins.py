@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import base64
-import hashlib
-import subprocess
 import sys
-import zipfile
 from pathlib import Path
 
 import pytest
 
 from skills.registry import ENTRY_POINT_GROUP, Registry
+from tests.tools import install_wheel
 
 MODULE = """
 from skills.base import In, Outcome, Skill
@@ -32,47 +29,11 @@ class NotASkill:
 """
 
 
-def build_wheel(directory: Path, entry_points: str) -> Path:
-    dist = "botstage_wave_skill-0.1.0"
-    files = {
-        "botstage_wave_skill.py": MODULE,
-        f"{dist}.dist-info/METADATA": "Metadata-Version: 2.1\nName: botstage-wave-skill\nVersion: 0.1.0\n",
-        f"{dist}.dist-info/WHEEL": "Wheel-Version: 1.0\nGenerator: test\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
-        f"{dist}.dist-info/entry_points.txt": f"[{ENTRY_POINT_GROUP}]\n{entry_points}\n",
-    }
-    record = []
-    for name, text in files.items():
-        digest = base64.urlsafe_b64encode(hashlib.sha256(text.encode()).digest()).rstrip(b"=").decode()
-        record.append(f"{name},sha256={digest},{len(text.encode())}")
-    record.append(f"{dist}.dist-info/RECORD,,")
-    files[f"{dist}.dist-info/RECORD"] = "\n".join(record) + "\n"
-    wheel = directory / f"{dist.replace('-', '-')}-py3-none-any.whl"
-    with zipfile.ZipFile(wheel, "w") as zf:
-        for name, text in files.items():
-            zf.writestr(name, text)
-    return wheel
-
-
 @pytest.fixture
 def installed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
     def install(entry_points: str) -> None:
-        wheel = build_wheel(tmp_path, entry_points)
-        target = tmp_path / "site"
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "--no-deps",
-                "--no-index",
-                "--target",
-                str(target),
-                str(wheel),
-            ],
-            check=True,
-        )
+        files = {"botstage_wave_skill.py": MODULE}
+        target = install_wheel(tmp_path, "botstage-wave-skill", files, f"[{ENTRY_POINT_GROUP}]\n{entry_points}\n")
         monkeypatch.syspath_prepend(str(target))
 
     yield install

@@ -4,13 +4,10 @@ every trace event."""
 
 from __future__ import annotations
 
-import base64
-import hashlib
 import json
 import os
 import subprocess
 import sys
-import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,10 +16,10 @@ import pytest
 from missions.runner import run
 from missions.session import observer_registry, service_registry
 from robots.backend_registry import BackendRegistry
+from tests.tools import install_wheel
 
 ROOT = Path(__file__).resolve().parent.parent
 DRIVE_DEMO = ROOT / "missions" / "drive_demo.yaml"
-DIST = "botstage_toy_robot-0.1.0"
 MODULE = '''
 import json
 
@@ -97,32 +94,10 @@ hooter = botstage_toy_robot:Horn
 """
 
 
-def build_wheel(directory: Path) -> Path:
-    files = {
-        "botstage_toy_robot.py": MODULE,
-        f"{DIST}.dist-info/METADATA": "Metadata-Version: 2.1\nName: botstage-toy-robot\nVersion: 0.1.0\n",
-        f"{DIST}.dist-info/WHEEL": "Wheel-Version: 1.0\nGenerator: test\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
-        f"{DIST}.dist-info/entry_points.txt": ENTRY_POINTS,
-    }
-    record = []
-    for name, text in files.items():
-        digest = base64.urlsafe_b64encode(hashlib.sha256(text.encode()).digest()).rstrip(b"=").decode()
-        record.append(f"{name},sha256={digest},{len(text.encode())}")
-    record.append(f"{DIST}.dist-info/RECORD,,")
-    files[f"{DIST}.dist-info/RECORD"] = "\n".join(record) + "\n"
-    wheel = directory / f"{DIST}-py3-none-any.whl"
-    with zipfile.ZipFile(wheel, "w") as zf:
-        for name, text in files.items():
-            zf.writestr(name, text)
-    return wheel
-
-
 @pytest.fixture
 def toy_plugin(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     """The plugin installed into a site folder on sys.path (yielded, for subprocesses)."""
-    target = tmp_path / "site"
-    command = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-index", "--target", str(target)]
-    subprocess.run([*command, str(build_wheel(tmp_path))], check=True)
+    target = install_wheel(tmp_path, "botstage-toy-robot", {"botstage_toy_robot.py": MODULE}, ENTRY_POINTS)
     monkeypatch.syspath_prepend(str(target))
     yield target
     sys.modules.pop("botstage_toy_robot", None)

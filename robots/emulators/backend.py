@@ -9,7 +9,6 @@ true path for the report: the world moves by itself.
 
 from __future__ import annotations
 
-import math
 import threading
 from collections.abc import Mapping
 from pathlib import Path
@@ -24,6 +23,7 @@ from robots.interfaces import LaserScan, Pose2D
 from robots.profile import Profile
 from robots.sim.backend import populated_world
 from robots.sim.devices import SimLaser, SimMicrophone, SimSpeaker
+from robots.sim.trajectory import Trajectory
 from robots.sim.voices import Voices
 
 
@@ -75,7 +75,7 @@ class EmulatorBackend:
             self.devices["microphone"] = microphone = SimMicrophone(self.world, clock)
             self.voices = Voices.for_world(self.world, self.crowd, microphone, self.devices.get("speaker"))
         self.not_simulated = sorted(set(profile.interfaces) - set(self.devices))
-        self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
+        self.trajectory = Trajectory(start)
 
     @property
     def profile(self) -> Profile:
@@ -117,7 +117,7 @@ class EmulatorBackend:
     def step(self) -> None:
         with self.lock:
             pose = self.world.body.pose
-            self.trajectory.append((self.world.time, pose.x, pose.y, pose.theta))
+            self.trajectory.add(self.world.time, pose)
             if self.voices is not None:
                 self.voices.step(self.clock.now())
 
@@ -128,16 +128,10 @@ class EmulatorBackend:
             self.emulator.close()
 
     def write_results(self, folder: Path) -> None:
-        self.write_trajectory(folder / "trajectory.csv")
-
-    def write_trajectory(self, path: Path) -> None:
-        lines = ["t,x,y,theta"] + [f"{t:.6g},{x:.6f},{y:.6f},{theta:.6f}" for t, x, y, theta in self.trajectory]
-        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        self.trajectory.write(folder / "trajectory.csv")
 
     def summary(self) -> dict[str, Any]:
-        distance = sum(
-            math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(self.trajectory, self.trajectory[1:], strict=False)
-        )
+        distance = self.trajectory.distance()
         with self.lock:
             final = self.world.body.pose
             world = {

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
@@ -28,6 +27,7 @@ from robots.sim.devices import (
     SimSpeaker,
 )
 from robots.sim.people import PERSON_RADIUS, Crowd
+from robots.sim.trajectory import Trajectory
 from robots.sim.voices import Voices
 from robots.sim.world import World
 
@@ -99,7 +99,7 @@ class SimBackend:
                 self.devices[name] = makers[name](device)
             else:
                 self.not_simulated.append(name)  # an interface the simulator has no device for
-        self.trajectory: list[tuple[float, float, float, float]] = [(0.0, start.x, start.y, start.theta)]
+        self.trajectory = Trajectory(start)
         # people near the robot speak into its microphone (robots/sim/voices.py)
         microphone = self.devices.get("microphone")
         speaker = self.devices.get("speaker")
@@ -140,22 +140,16 @@ class SimBackend:
         if self.voices is not None:
             self.voices.step(self.clock.now())
         pose = self.world.body.pose
-        self.trajectory.append((self.world.time, pose.x, pose.y, pose.theta))
+        self.trajectory.add(self.world.time, pose)
 
     def close(self) -> None:
         self.world.stop()  # zero velocity on every exit path
 
     def write_results(self, folder: Path) -> None:
-        self.write_trajectory(folder / "trajectory.csv")
-
-    def write_trajectory(self, path: Path) -> None:
-        lines = ["t,x,y,theta"] + [f"{t:.6g},{x:.6f},{y:.6f},{theta:.6f}" for t, x, y, theta in self.trajectory]
-        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        self.trajectory.write(folder / "trajectory.csv")
 
     def summary(self) -> dict[str, Any]:
-        distance = sum(
-            math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(self.trajectory, self.trajectory[1:], strict=False)
-        )
+        distance = self.trajectory.distance()
         final = self.world.body.pose
         return {
             "distance_m": round(distance, 4),
