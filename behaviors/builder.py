@@ -33,7 +33,6 @@ from behaviors.kinds.base import argument_adapter
 from behaviors.machine import MachineBehaviour, MachinePlan
 from behaviors.machine_plan import MachinePlanner
 from behaviors.runtime import Runtime
-from behaviors.skill_behaviour import SkillBehaviour
 from behaviors.skill_binding import SkillBinder, success_outcomes
 from behaviors.suggest import did_you_mean
 from skills.expression import Expression, ExpressionError, compile_expression, key_of
@@ -116,7 +115,8 @@ class Builder:
         self.problems: list[SpecProblem] = []
         self.usages: list[KeyUsage] = []
         self.plans: list[MachinePlan] = []  # every machine planned, even one with problems
-        self._skills = SkillBinder(self)
+        # a skill node, shared by tree leaves (the skill and condition kinds) and machine states
+        self.skill_node = SkillBinder(self).node
         self._machines = MachinePlanner(self)
 
     # -- public -----------------------------------------------------------------------------
@@ -184,19 +184,6 @@ class Builder:
         if problem:
             self.problem(spec_path + where, problem, hint)
         return found
-
-    def skill_node(
-        self,
-        skill_name: Any,
-        inputs: Any,
-        outputs: Any,
-        success_on: Any,
-        params: Any,
-        scope: Scope,
-        inputs_path: SpecPath,
-    ) -> SkillBehaviour | None:
-        """A skill node, shared by tree leaves and machine states."""
-        return self._skills.node(skill_name, inputs, outputs, success_on, params, scope, inputs_path)
 
     def reference(
         self, label: str, name: Any, table: Mapping[str, Any], scope: Scope, where: SpecPath
