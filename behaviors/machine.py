@@ -159,14 +159,15 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
         self.model = _Model()
         self._entered_at: dict[str, float] = {}
         self._error: str | None = None
-        self._scopes: list[tuple[str, list[tuple[Expression, list[Target]]]]] = [("", plan.preemptions)] + [
-            (path, info.preemptions) for path, info in plan.states.items() if info.preemptions
-        ]
+        # preemptions by the path of the state whose machine declares them ("" for the top level)
+        self._preemptions: dict[str, list[tuple[Expression, list[Target]]]] = {"": plan.preemptions} | {
+            path: info.preemptions for path, info in plan.states.items() if info.preemptions
+        }
         self._timed = any(info.timeout is not None for info in plan.states.values())
         self._contents = {p: i.content for p, i in plan.states.items() if i.content is not None}
         for content in self._contents.values():
             content.parent = self  # what runs in a state sits under the machine (for preemption order)
-        self._watch = self._timed or any(items for _, items in self._scopes)
+        self._watch = self._timed or any(self._preemptions.values())
         self._kinds = {p: i.kind for p, i in plan.states.items()}
         self._machine = self._build_hsm()
         self._trigger = partial(self._machine.trigger_event, self.model)
@@ -207,7 +208,7 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
                 for target in targets:
                     conditions = [self._guard_check(g) for g in target.guards] or None
                     machine.add_transition(f"{path}:{outcome}", path, target.state, conditions=conditions)
-        for scope, preemptions in self._scopes:
+        for scope, preemptions in self._preemptions.items():
             sources = list(plan.top) if not scope else [scope]
             for index, (_, targets) in enumerate(preemptions):
                 for target in targets:
@@ -325,39 +326,65 @@ class MachineBehaviour(py_trees.behaviour.Behaviour):
     # -- stepping ---------------------------------------------------------------------------
 
     def _preempt_or_time_out(self) -> None:
+        """Take the one preemption or timeout due now, if any.
+
+        Levels are checked from the top down: at each level its preemptions in the order
+        written, then the timeout of its active state. A transition that leaves an outer
+        state makes any inner one moot, so the outermost wins; at one level a preemption is an
+        interrupt and wins over the timeout.
+        """
         state = self.model.state
-        for scope, preemptions in self._scopes:
-            if scope and not (state == scope or state.startswith(scope + "/")):
-                continue
-            for index, (condition, targets) in enumerate(preemptions):
-                if any(state == t.state or state.startswith(t.state + "/") for t in targets):
-                    continue
-                try:
-                    fire = condition.test(self.access.get)
-                except (BlackboardError, EvaluationError) as exc:
-                    self._error = f"preemption {condition.source!r} cannot be evaluated: {exc}"
-                    return
-                if fire:
-                    reason = f"preempted: {condition.source!r} holds"
-                    if self._blocked(targets, reason):
-                        return
-                    with self.runtime.halting(reason):
-                        self._halt_content()
-                        self._fire(f"{scope or '/'}!preempt{index}", f"preempt {condition.source!r}", reason)
-                    self._settle(reason)
-                    return
-        if not self._timed:
-            return
-        now = self.runtime.clock.now()
         parts = state.split("/")
-        for depth in range(1, len(parts) + 1):
-            path = "/".join(parts[:depth])
-            timeout = self.plan.states[path].timeout
-            if timeout is not None and now - self._entered_at[path] >= timeout - 1e-9:
-                reason = f"state {path!r} timed out after {timeout:g} s"
-                with self.runtime.halting(reason):
-                    self._on_outcome(path, "timeout", reason)
+        for depth in range(len(parts)):
+            if self._preempted("/".join(parts[:depth]), state):
                 return
+            if self._timed and self._timed_out("/".join(parts[: depth + 1])):
+                return
+
+    def _preempted(self, scope: str, state: str) -> bool:
+        """Fire the first preemption of ``scope``, in the order written, whose condition holds.
+
+        One whose condition holds while the machine is already in its target keeps it there:
+        the preemptions after it wait (two that hold never bounce the machine between their
+        targets). One whose way out is guarded (it leads through a guarded transition) does
+        not fire while no guard holds: it waits, and the next one is tried.
+        """
+        for index, (condition, targets) in enumerate(self._preemptions.get(scope, ())):
+            try:
+                if not condition.test(self.access.get):
+                    continue
+                if any(_within(state, t.state) for t in targets):
+                    return False
+                target = self._open(targets)
+            except (BlackboardError, EvaluationError) as exc:
+                self._error = f"preemption {condition.source!r} cannot be evaluated: {exc}"
+                return True
+            if target is None:
+                continue
+            reason = f"preempted: {condition.source!r} holds"
+            with self.runtime.halting(reason):
+                self._halt_content()
+                self._fire(f"{scope or '/'}!preempt{index}", f"preempt {condition.source!r}", reason)
+            self._settle(reason)
+            return True
+        return False
+
+    def _open(self, targets: Sequence[Target]) -> Target | None:
+        """The first target whose guards all hold (the one ``transitions`` will take)."""
+        for target in targets:
+            if all(g.test(self.access.get) for g in target.guards):
+                return target
+        return None
+
+    def _timed_out(self, path: str) -> bool:
+        """Take ``path``'s timeout transition if its timeout is due."""
+        timeout = self.plan.states[path].timeout
+        if timeout is None or self.runtime.clock.now() - self._entered_at[path] < timeout - 1e-9:
+            return False
+        reason = f"state {path!r} timed out after {timeout:g} s"
+        with self.runtime.halting(reason):
+            self._on_outcome(path, "timeout", reason)
+        return True
 
     def _on_outcome(self, path: str, outcome: str, reason: str) -> None:
         info = self.plan.states[path]
@@ -431,6 +458,11 @@ def plan_access(
                 for guard in target.guards:
                     reads |= guard.keys
     return reads, writes
+
+
+def _within(state: str, path: str) -> bool:
+    """True when ``state`` is ``path`` or one of its descendants."""
+    return state == path or state.startswith(path + "/")
 
 
 class Unresolved(Exception):

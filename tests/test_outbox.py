@@ -7,12 +7,14 @@ import json
 import logging
 import os
 import random
+import socket
 import sqlite3
 import subprocess
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import cv2
@@ -460,3 +462,140 @@ def test_the_store_is_safe_to_record_into_from_several_threads(tmp_path) -> None
     reopened = OutboxStore(tmp_path / "outbox")
     assert len(reopened.items()) == 4
     reopened.close()
+
+
+# -- how each answer is classified: a scripted server on 127.0.0.1 ----------------------------
+
+SERVER_DATE = "Sun, 06 Nov 1994 08:49:37 GMT"  # far from today: the client must read it, not its own clock
+
+
+class Scripted:
+    """An HTTP server on a free loopback port answering every POST as told."""
+
+    def __init__(self) -> None:
+        self.status = 200
+        self.headers: dict[str, str] = {}
+        self.body = b"{}"
+        self.requests = 0
+        scripted = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def do_POST(self) -> None:
+                self.rfile.read(int(self.headers.get("Content-Length", 0)))
+                scripted.requests += 1
+                self.send_response_only(scripted.status)
+                headers = {"Date": SERVER_DATE, "Content-Type": "application/json", **scripted.headers}
+                for name, value in headers.items():
+                    if value is not None:
+                        self.send_header(name, value)
+                self.send_header("Content-Length", str(len(scripted.body)))
+                self.end_headers()
+                self.wfile.write(scripted.body)
+
+            def log_message(self, *args: object) -> None:
+                pass
+
+        self.server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.server.daemon_threads = True
+        self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+        self.thread.start()
+        self.url = f"http://127.0.0.1:{self.server.server_address[1]}/photos"
+
+    def answer(self, status: int, headers: dict[str, str | None] | None = None, detail: str | None = None) -> None:
+        self.status, self.headers = status, dict(headers or {})
+        self.body = json.dumps({"detail": detail} if detail else {}).encode()
+
+    def stop(self) -> None:
+        self.server.shutdown()
+        self.server.server_close()
+
+
+@pytest.fixture
+def scripted() -> Iterator[Scripted]:
+    server = Scripted()
+    yield server
+    server.stop()
+
+
+BACKOFF = {"backoff_initial": 1.0, "backoff_max": 60.0}
+
+
+@pytest.mark.parametrize(
+    ("status", "headers", "said", "wait"),
+    [
+        (500, {}, "HTTP 500 from", (0.5, 1.0)),
+        (502, {}, "HTTP 502 from", (0.5, 1.0)),
+        (503, {}, "HTTP 503 from", (0.5, 1.0)),
+        (504, {}, "HTTP 504 from", (0.5, 1.0)),
+        (503, {"Retry-After": "7"}, "HTTP 503 from", (7.0, 7.0)),
+        (429, {"Retry-After": "12"}, "HTTP 429 from", (12.0, 12.0)),
+        (429, {}, "HTTP 429 from", (0.5, 1.0)),
+        (429, {"Retry-After": "Sun, 06 Nov 1994 08:50:07 GMT"}, "asked to retry after 30 s", (30.0, 30.0)),
+        # an HTTP-date without the server's Date: counted from now; a day away is cut to the longest backoff
+        (429, {"Date": None, "Retry-After": "Fri, 01 Jan 2100 00:00:00 GMT"}, "HTTP 429 from", (60.0, 60.0)),
+        (503, {"Retry-After": "86400"}, "asked to retry after 86400 s", (60.0, 60.0)),
+        (503, {"Retry-After": "Sun, 06 Nov 1994 08:00:00 GMT"}, "HTTP 503 from", (0.5, 1.0)),  # in the past
+        (503, {"Retry-After": "soon"}, "HTTP 503 from", (0.5, 1.0)),  # not a valid value: plain backoff
+        (408, {}, "HTTP 408 from", (0.5, 1.0)),
+        (404, {}, "no upload address at", (0.5, 1.0)),  # a wrong endpoint waits for the operator
+        (405, {}, "HTTP 405", (0.5, 1.0)),
+        (403, {}, "refused the token (HTTP 403)", (0.5, 1.0)),
+    ],
+)
+def test_a_transient_answer_is_retried_after_the_wait_it_asks_for(
+    tmp_path, scripted, open_outbox, clock, status, headers, said, wait
+) -> None:
+    scripted.answer(status, headers, detail="busy, come back later")
+    outbox = open_outbox(scripted.url, settings=BACKOFF)
+    item = outbox.record(make_photo(tmp_path / "p"))
+    outbox.step()
+    after = outbox.status(item.hash)
+    assert after.state == PENDING
+    assert after.attempts == 1
+    assert said in after.last_error
+    assert str(status) in after.last_error
+    assert outbox.worker.stats["retries"] == 1
+    due = outbox.worker.next_due()
+    assert due is not None and wait[0] <= due - clock.t <= wait[1]
+    clock.t = due - 0.01
+    outbox.step()  # not yet
+    assert scripted.requests == 1
+    scripted.answer(201, detail=None)
+    clock.t = due
+    outbox.step()
+    assert outbox.status(item.hash).state == UPLOADED
+    assert scripted.requests == 2
+
+
+@pytest.mark.parametrize("status", [400, 409, 412, 418, 422, 451])
+def test_a_photo_refused_with_another_4xx_is_rejected_for_good_with_the_reason(
+    tmp_path, scripted, open_outbox, clock, status
+) -> None:
+    scripted.answer(status, {"Retry-After": "1"}, detail="no faces allowed")
+    outbox = open_outbox(scripted.url, settings=BACKOFF)
+    item = outbox.record(make_photo(tmp_path / "p"))
+    for _ in range(5):
+        outbox.step()
+        clock.t += 100
+    after = outbox.status(item.hash)
+    assert after.state == REJECTED
+    assert after.last_error == f"the gallery refused the photo (HTTP {status}: no faces allowed)"
+    assert scripted.requests == 1
+    assert outbox.worker.next_due() is None
+    assert outbox.summary()["photos_rejected"] == 1
+
+
+def test_a_gallery_that_never_answers_times_out_and_is_retried(tmp_path, open_outbox, clock) -> None:
+    """It accepts the connection (the kernel does, from the backlog) and never reads or answers."""
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(8)
+        url = f"http://127.0.0.1:{silent.getsockname()[1]}/photos"
+        outbox = open_outbox(url, settings={**BACKOFF, "request_timeout": 0.2})
+        item = outbox.record(make_photo(tmp_path / "p"))
+        outbox.step()  # waits for the attempt: the client's own 0.2 s timeout ends it
+        after = outbox.status(item.hash)
+        assert after.state == PENDING
+        assert after.last_error == f"the gallery at {url} did not answer in time (ReadTimeout)"
+        due = outbox.worker.next_due()
+        assert due is not None and 0.5 <= due - clock.t <= 1.0

@@ -5,10 +5,14 @@ header and as the ``hash`` form field, so the gallery can both deduplicate and c
 it got. The answer is sorted into what the outbox does next:
 
 - 2xx: uploaded (the only answer that marks a photo done);
-- 400, 413, 415, 422: rejected, the photo itself is refused: retrying cannot help;
-- anything else (connection refused, timeouts, 5xx, 429, 401/403, 404): retried with backoff.
-  A refused token or a wrong address is the configuration's fault, not the photo's: it waits
-  for the operator rather than being thrown away.
+- transient (connection errors, timeouts, 5xx, 408, 425, 429): retried with backoff; a
+  ``Retry-After`` (seconds, or an HTTP-date read against the answer's own ``Date``) is the
+  least wait before the next try;
+- the configuration's fault, not the photo's (401, 403, 407: the token; 404, 405, 410, 421:
+  the address): retried, so the photo waits for the operator rather than being thrown away;
+- any other 4xx (400, 413, 415, 422, ...): rejected, the photo itself is refused and sending
+  it again unchanged cannot help;
+- anything else (1xx, 3xx: httpx follows no redirect for a POST): retried.
 
 The token (from the environment) goes only into the ``Authorization`` header; it is never part
 of a reason, a repr or a log line.
@@ -18,6 +22,8 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from datetime import UTC, datetime
+from email.utils import parsedate_to_datetime
 from typing import Literal
 from urllib.parse import urlsplit, urlunsplit
 
@@ -26,18 +32,22 @@ import httpx
 from skills.outbox.images import MEDIA_TYPES
 from skills.outbox.store import Item
 
-REJECTING = frozenset({400, 413, 415, 422})
+TRANSIENT = frozenset({408, 425, 429})  # besides every 5xx
+TOKEN_REFUSED = frozenset({401, 403, 407})
+NO_SUCH_ADDRESS = frozenset({404, 405, 410, 421})
 Verdict = Literal["uploaded", "rejected", "retry", "damaged"]
 
 
 @dataclass(frozen=True, slots=True)
 class Attempt:
-    """How one attempt ended; ``duplicate`` when the gallery already had the photo."""
+    """How one attempt ended; ``duplicate`` when the gallery already had the photo;
+    ``retry_after``: the least wait, in seconds, the gallery asked for before the next try."""
 
     verdict: Verdict
     reason: str = ""
     status: int | None = None
     duplicate: bool = False
+    retry_after: float | None = None
 
 
 def redact(url: str) -> str:
@@ -57,6 +67,30 @@ def _detail(response: httpx.Response) -> str:
         return response.reason_phrase
     detail = body.get("detail") if isinstance(body, dict) else None
     return str(detail) if detail else response.reason_phrase
+
+
+def retry_after(response: httpx.Response) -> float | None:
+    """Seconds the ``Retry-After`` header asks to wait (never negative), None without a valid one.
+
+    An HTTP-date is counted from the answer's own ``Date`` (the server's clock, so a skewed
+    robot clock does not matter), or from now when the answer has none.
+    """
+    value = response.headers.get("retry-after", "").strip()
+    if not value:
+        return None
+    if value.isascii() and value.isdigit():
+        return float(value)
+    try:
+        when = parsedate_to_datetime(value)
+        sent = response.headers.get("date")
+        reference = parsedate_to_datetime(sent) if sent else datetime.now(UTC)
+        return max(0.0, (when - reference).total_seconds())
+    except (TypeError, ValueError, IndexError, OverflowError):
+        return None
+
+
+def _asked(wait: float | None) -> str:
+    return "" if wait is None else f" (asked to retry after {wait:g} s)"
 
 
 class GalleryClient:
@@ -105,11 +139,15 @@ class GalleryClient:
                 duplicate = False
             return Attempt("uploaded", "", status, duplicate)
         detail = _detail(response)
-        if status in REJECTING:
-            return Attempt("rejected", f"the gallery refused the photo (HTTP {status}: {detail})", status)
-        if status in (401, 403):
+        if status in TOKEN_REFUSED:
             return Attempt("retry", f"the gallery refused the token (HTTP {status}): check {self._token_env}", status)
-        return Attempt("retry", f"HTTP {status} from {self._shown}: {detail}", status)
+        if status in NO_SUCH_ADDRESS:
+            reason = f"no upload address at {self._shown} (HTTP {status}: {detail}): check the endpoint"
+            return Attempt("retry", reason, status)
+        if 400 <= status < 500 and status not in TRANSIENT:
+            return Attempt("rejected", f"the gallery refused the photo (HTTP {status}: {detail})", status)
+        wait = retry_after(response)
+        return Attempt("retry", f"HTTP {status} from {self._shown}: {detail}{_asked(wait)}", status, retry_after=wait)
 
     def close(self) -> None:
         self._http.close()

@@ -13,7 +13,9 @@ time. That makes the worker work on either kind of clock:
 
 Backoff is exponential with "equal jitter" (half the delay fixed, half random) from a seeded
 generator; the random draw is made when an attempt starts, in recording order, so a seed gives
-the same schedule every run. A photo is marked uploaded only after a 2xx.
+the same schedule every run. A ``Retry-After`` from the gallery lengthens that wait, up to the
+longest backoff (a gallery asking for a day must not silence the robot for a day). A photo is
+marked uploaded only after a 2xx.
 """
 
 from __future__ import annotations
@@ -189,6 +191,8 @@ class UploadWorker:
             self.stats[attempt.verdict] += 1
             _log.warning("photo %s %s: %s", h[:12], item.state, attempt.reason)
         else:
+            if attempt.retry_after is not None:  # honoured, within the longest backoff
+                delay = min(self.backoff.maximum, max(delay, attempt.retry_after))
             item = self.store.mark_failed_attempt(h, attempt.reason)
             self._due[h] = self.now() + delay
             self.stats["retries"] += 1
