@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import re
+import unicodedata
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -44,11 +45,17 @@ class KeyTypeError(BlackboardError, TypeError):
 
 
 def normalise_key(key: str) -> str:
-    """``/robot/pose`` and ``robot/pose`` name the same key; anything else is an error."""
+    """``/robot/pose`` and ``robot/pose`` name the same key; anything else is an error.
+
+    Each part is an identifier as Python has them (``電池`` too), normalised as Python normalises
+    names (NFKC), so a key written in a mission and read by a condition is the same key."""
     if not isinstance(key, str):
         raise BlackboardError(f"a blackboard key must be a string, got {type(key).__name__}")
     rel = key.strip("/")
-    if not _KEY.match(rel):
+    if _KEY.match(rel):
+        return rel
+    rel = unicodedata.normalize("NFKC", rel)
+    if not all(part.isidentifier() for part in rel.split("/")):
         raise BlackboardError(
             f"invalid blackboard key {key!r}: use identifiers separated by '/', e.g. 'robot/battery_pct'"
         )

@@ -35,6 +35,7 @@ from behaviors.machine_plan import MachinePlanner
 from behaviors.runtime import Runtime
 from behaviors.skill_binding import SkillBinder, success_outcomes
 from behaviors.suggest import did_you_mean
+from robots.limits import MAX_NODE_DEPTH
 from skills.expression import Expression, ExpressionError, compile_expression, key_of
 
 __all__ = ["Builder", "KeyUsage", "Scope", "SpecError", "SpecPath", "SpecProblem", "remap_condition", "remap_key"]
@@ -74,18 +75,25 @@ class SpecError(ValueError):
 @dataclass(frozen=True)
 class Scope:
     """Where a node is being built: its trace path, its spec's place, the key remapping of the
-    subtrees around it and the trees and machines entered on the way (to refuse cycles)."""
+    subtrees around it, the trees and machines entered on the way (to refuse cycles) and how
+    deep it is (children, subtrees and states each count one: building recurses)."""
 
     path: str
     spec_path: SpecPath
     remap: Mapping[str, str] = field(default_factory=dict)
     subtrees: tuple[str, ...] = ()
+    depth: int = 0
 
     def key(self, key: str) -> str:
         return remap_key(key, self.remap)
 
     def child(self, segment: str, *spec: str | int) -> Scope:
-        return replace(self, path=f"{self.path}/{segment}" if self.path else segment, spec_path=self.spec_path + spec)
+        return replace(
+            self,
+            path=f"{self.path}/{segment}" if self.path else segment,
+            spec_path=self.spec_path + spec,
+            depth=self.depth + 1,
+        )
 
     def at(self, path: str) -> Scope:
         return replace(self, path=path)
@@ -115,6 +123,8 @@ class Builder:
         self.problems: list[SpecProblem] = []
         self.usages: list[KeyUsage] = []
         self.plans: list[MachinePlan] = []  # every machine planned, even one with problems
+        self.entered: set[tuple[str, str]] = set()  # ("trees" or "machines", name) built through a reference
+        self._too_deep = False  # reported once: past the limit, every branch would report it again
         # a skill node, shared by tree leaves (the skill and condition kinds) and machine states
         self.skill_node = SkillBinder(self).node
         self._machines = MachinePlanner(self)
@@ -170,8 +180,11 @@ class Builder:
             return None
         if scope.remap and any(scope.key(k) != k for k in expression.keys):
             expression = compile_expression(remap_condition(expression.source, scope.remap))
-        for key in sorted(expression.keys):
-            self.use(key, "read", spec_path, scope)
+        keys = [self.key(key, spec_path, Scope("", ())) for key in sorted(expression.keys)]
+        if None in keys:
+            return None
+        for key in keys:
+            self.use(key, "read", spec_path, scope)  # type: ignore[arg-type]
         return expression
 
     def remapped_condition(self, source: str, scope: Scope) -> str:
@@ -198,8 +211,24 @@ class Builder:
         if entry in scope.subtrees:
             self.problem(where, f"{label} cycle: {' -> '.join((*scope.subtrees, entry))}")
             return None
-        inner = Scope(scope.path, (f"{noun}s", name), scope.remap, (*scope.subtrees, entry))
+        if not self._shallow(scope, where):
+            return None
+        self.entered.add((f"{noun}s", name))
+        inner = Scope(scope.path, (f"{noun}s", name), scope.remap, (*scope.subtrees, entry), scope.depth + 1)
         return table[name], inner
+
+    def _shallow(self, scope: Scope, where: SpecPath) -> bool:
+        """False (and a problem) where nesting goes deeper than the limit: building recurses."""
+        if scope.depth < MAX_NODE_DEPTH:
+            return True
+        if not self._too_deep:
+            self._too_deep = True
+            self.problem(
+                where,
+                f"nested more than {MAX_NODE_DEPTH} levels deep (counting subtrees, machines and states)",
+                "split it into smaller trees side by side",
+            )
+        return False
 
     def subtree(self, spec: Mapping[str, Any], scope: Scope) -> py_trees.behaviour.Behaviour | None:
         found = self.reference("subtree", spec["subtree"], self.trees, scope, scope.spec_path + ("subtree",))
@@ -234,6 +263,8 @@ class Builder:
         """Build the node ``spec`` describes at ``scope``; None (and problems) if it cannot be."""
         if isinstance(spec, str) and spec in self.runtime.registry:
             spec = {spec: None}  # a bare skill name with no inputs
+        if not self._shallow(scope, scope.spec_path):
+            return None
         if not isinstance(spec, Mapping):
             self.problem(scope.spec_path, f"expected a node (a mapping), got {type(spec).__name__}")
             return None
@@ -341,8 +372,9 @@ class Builder:
         try:
             b.value = argument_adapter(kind.argument).validate_python(b.value)
         except ValidationError as exc:
-            wanted = kind.argument_help or exc.errors()[0]["msg"].lower()
-            self.problem(scope.spec_path + (b.key,), f"{b.key} needs {wanted}, got {b.value!r}")
+            message = exc.errors()[0]["msg"]
+            hint = f"{b.key} takes {kind.argument_help}" if kind.argument_help else ""
+            self.problem(scope.spec_path + (b.key,), f"{b.key}: {message[:1].lower() + message[1:]}", hint)
             return False
         return True
 
@@ -388,6 +420,7 @@ class Builder:
         return "node"
 
     def _raise_problems(self) -> None:
+        self._too_deep = False  # once per tree or machine built
         if self.problems:
             problems, self.problems = self.problems, []
             raise SpecError(problems)

@@ -20,6 +20,7 @@ from behaviors.machine import (
     resolve_target,
 )
 from behaviors.suggest import did_you_mean
+from robots.limits import PositiveSeconds, number_problem
 from skills.expression import Expression
 
 if TYPE_CHECKING:
@@ -284,8 +285,9 @@ class MachinePlanner:
     def _timeout(self, timeout: Any, scope: Scope, info: StateInfo) -> set[str]:
         if timeout is None:
             return set()
-        if not isinstance(timeout, int | float) or isinstance(timeout, bool) or not timeout > 0:
-            self.b.problem(scope.spec_path + ("timeout",), "timeout needs a positive number of seconds")
+        problem = number_problem(PositiveSeconds, timeout)
+        if problem:
+            self.b.problem(scope.spec_path + ("timeout",), f"timeout: {problem}", "a positive number of seconds")
             return set()
         info.timeout = float(timeout)
         return {"timeout"}

@@ -113,7 +113,7 @@ class SkillBinder:
             self.b.use(key, "read", where, scope, port.type)
             return KeyRef(key)
         try:
-            value = check_type(port.type, value)
+            value = check_type(port.type, value, finite=True)
         except TypeError as exc:
             self.b.problem(where, f"input {port_name!r} of {cls.name!r}: {exc}")
             return _WRONG

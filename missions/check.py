@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import contextlib
 import difflib
+import gc
 import types
 import typing
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,7 +33,7 @@ from behaviors.suggest import did_you_mean
 from missions.loader import Loaded, Location, Locations, Problem, load
 from missions.schema import Mission, key_spec, parse_type
 from robots.clock import SimClock
-from skills.base import check_type, type_name
+from skills.base import check_type, plain_type, type_name
 from skills.registry import Registry
 
 
@@ -70,14 +71,20 @@ class _Collector:
 INTERNAL = "internal error while checking"
 
 
-def check(path: str | Path, registry: Registry | None = None, kinds: NodeKinds | None = None) -> Checked:
+def check(
+    path: str | Path,
+    registry: Registry | None = None,
+    kinds: NodeKinds | None = None,
+    include_dirs: Iterable[str | Path] = (),
+) -> Checked:
     """Load and check a mission file; never raises for a bad mission.
 
-    A bug in the checker itself is reported as a located problem too (and asks to be reported),
-    never as a traceback in the user's face.
+    ``include_dirs``: folders its includes may come from besides its own folder tree and the
+    built-in library (see ``missions.loader.load``). A bug in the checker itself is reported as
+    a located problem too (and asks to be reported), never as a traceback in the user's face.
     """
     path = Path(path)
-    return _safely(path, Location(str(path), 1, 1), lambda: _check(load(path), path, registry, kinds))
+    return _safely(path, Location(str(path), 1, 1), lambda: _check(load(path, include_dirs), path, registry, kinds))
 
 
 def check_loaded(
@@ -95,10 +102,24 @@ def check_loaded(
 
 def _safely(path: Path, where: Location, checking: Callable[[], Checked]) -> Checked:
     try:
-        return checking()
+        with _collection_paused():
+            return checking()
     except Exception as exc:  # the safety net; the fuzz test asserts it is never needed
         problem = Problem(where, f"{INTERNAL}: {type(exc).__name__}: {exc}", "please report this with the file")
         return Checked(path, Loaded(None, Locations(root=where), [], [path]), None, [problem])
+
+
+@contextlib.contextmanager
+def _collection_paused() -> Iterator[None]:
+    """Checking builds a graph of nodes that lives until it returns; the garbage collector,
+    scanning it again and again as it grows, would cost a third of the check of a large mission."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKinds | None) -> Checked:
@@ -123,12 +144,14 @@ def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKin
             _check_machines(builder.plans, out)
             _check_usages(builder.usages, mission, checked, out)
             checked.keys_used = {u.key for u in builder.usages}
-        # every named tree and machine is checked on its own too, used or not
+        # every named tree and machine is checked on its own too, used or not: once (a chain of
+        # a thousand subtrees is built once, not once from each of its links)
         alone = engine.builder(mission.trees, mission.machines, params)
-        for name in mission.trees:
-            _build(alone, mission, ("trees", name), out)
-        for name in mission.machines:
-            _build(alone, mission, ("machines", name), out)
+        built = set(builder.entered) | ({root_path} if root_path is not None else set())
+        for section, names in (("trees", mission.trees), ("machines", mission.machines)):
+            for name in names:
+                if (section, name) not in built and (section, name) not in alone.entered:
+                    _build(alone, mission, (section, name), out)
         _check_machines(alone.plans, out)
     finally:
         engine.close()
@@ -226,7 +249,7 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
                         out.problems.append(Problem(where, f"unknown skill {skill!r}", did_you_mean(skill, registry)))
                         continue
                     try:
-                        registry.get(skill).Params(**params)
+                        registry.get(skill).validate_params(params)
                     except ValidationError as exc:
                         first = exc.errors()[0]
                         out.problems.append(Problem(where, f"parameter of {skill!r}: {first['msg']}"))
@@ -303,7 +326,7 @@ def _check_skill_params(mission: Mission, registry: Registry, out: _Collector) -
             out.at(("skill_params", name), f"unknown skill {name!r}", did_you_mean(name, registry))
             continue
         try:
-            registry.get(name).Params(**params)
+            registry.get(name).validate_params(params)
         except ValidationError as exc:
             for error in exc.errors():
                 out.at(("skill_params", name, *error["loc"]), f"parameter of {name!r}: {error['msg']}")
@@ -428,6 +451,7 @@ def _check_usages(usages: list[KeyUsage], mission: Mission, checked: Checked, ou
 def _compatible(declared: Any, port: Any, mode: str) -> bool:
     """Can a value of one type flow into the other (reads: key -> port; writes: port -> key)?"""
     source, target = (declared, port) if mode == "read" else (port, declared)
+    source, target = plain_type(source), plain_type(target)  # Seconds is a float
     if Any in (source, target) or source == target:
         return True
     if source is int and target is float:

@@ -9,25 +9,30 @@ complete and check mission files as they are typed.
 from __future__ import annotations
 
 import re
+import unicodedata
 from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator
 
 from behaviors.kinds import NodeKinds
 from behaviors.kinds.base import CONDITION_SCHEMA, MACHINE_REF, NODE_REF, merge_property
+from robots.limits import MAX_NAME_BYTES, MAX_SECONDS
 from skills.registry import Registry
 
 SCHEMA_ID = "https://botstage.dev/schema/mission.json"
+# every model refuses NaN and infinities: `until: .nan` would end a run at once, `time: .inf` never
+_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
+_DAYS = f"at most {MAX_SECONDS:,.0f} s (about {MAX_SECONDS / 86400:.0f} days)"
 
 
 class Gathering(BaseModel):
     """A group the simulator's people form on cue: the nearest free people walk to ``at``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = _CONFIG
     at: str | list[float] = Field(description="a named place of the map, or [x, y]")
     size: int = Field(ge=2, le=6, description="people in the group (the paper's 2-6)")
-    time: float = Field(default=0.0, ge=0, description="mission seconds when they set off")
-    stay: float = Field(default=120.0, gt=0, description="seconds they stay once all are there")
+    time: float = Field(default=0.0, ge=0, le=MAX_SECONDS, description=f"mission seconds when they set off; {_DAYS}")
+    stay: float = Field(default=120.0, gt=0, le=MAX_SECONDS, description=f"seconds they stay once there; {_DAYS}")
 
 
 VOICE_COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")  # what the simulator's voice clips say
@@ -36,12 +41,12 @@ VOICE_COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")  # what the simul
 class VoiceSettings(BaseModel):
     """How the simulator's people speak to the robot (robots/sim/voices.py)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = _CONFIG
     near: float = Field(default=2.5, gt=0, description="m: people within this of the robot speak to it")
-    every: float = Field(default=12.0, gt=0, description="s: mean wait between utterances")
+    every: float = Field(default=12.0, gt=0, le=MAX_SECONDS, description=f"s: mean wait between utterances; {_DAYS}")
     command_share: float = Field(default=0.6, ge=0, le=1, description="share of utterances that are commands")
-    pause: float = Field(default=1.0, ge=0, description="s of quiet at least between two utterances")
-    command_weights: dict[str, float] = Field(
+    pause: float = Field(default=1.0, ge=0, le=MAX_SECONDS, description=f"s of quiet at least between two; {_DAYS}")
+    command_weights: dict[str, Annotated[float, Field(ge=0)]] = Field(
         default_factory=dict, description="how often each command is said, relatively (default: all alike)"
     )
 
@@ -51,15 +56,13 @@ class VoiceSettings(BaseModel):
         unknown = sorted(set(value) - set(VOICE_COMMANDS))
         if unknown:
             raise ValueError(f"no such command {', '.join(unknown)} (commands: {', '.join(VOICE_COMMANDS)})")
-        if any(weight < 0 for weight in value.values()):
-            raise ValueError("a command's weight must not be negative")
         return value
 
 
 class KeySpec(BaseModel):
     """A declared blackboard key: its type (checked on every write) and an optional default."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = _CONFIG
     type: str = Field(description="float, int, bool, str, any, list[float], dict[str, int], float | None, ...")
     default: Any = None
     doc: str = ""
@@ -82,9 +85,13 @@ MachineField = Annotated[Any, WithJsonSchema(_MACHINE_MARK)]
 class Mission(BaseModel):
     """A botstage mission."""
 
-    model_config = ConfigDict(extra="forbid", title="botstage mission")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, title="botstage mission")
 
-    name: str = Field(default="", description="defaults to the file name")
+    name: str = Field(
+        default="",
+        description="names the run folder: letters of any script, digits, '_', '-' and '.' "
+        f"(at most {MAX_NAME_BYTES} bytes in UTF-8); defaults to the file name",
+    )
     description: str = ""
     robot: str | None = Field(default=None, description="a robot profile name or a path to a profile YAML")
     world: str | None = Field(default=None, description="the simulated world: a shipped map's name or a map YAML")
@@ -100,7 +107,9 @@ class Mission(BaseModel):
     )
     seed: int = 0
     rate_hz: float = Field(default=10.0, gt=0, le=10_000, description="ticks per second")
-    until: float | None = Field(default=None, gt=0, description="stop after this many seconds of mission time")
+    until: float | None = Field(
+        default=None, gt=0, le=MAX_SECONDS, description=f"stop after this many seconds of mission time; {_DAYS}"
+    )
     include: list[str] | str | None = Field(default=None, description="files with shared trees, machines, keys")
     keys: dict[str, KeySpec | str] = Field(default_factory=dict, description="declared blackboard keys and types")
     blackboard: dict[str, Any] = Field(default_factory=dict, description="initial blackboard values")
@@ -116,9 +125,19 @@ class Mission(BaseModel):
     @field_validator("name")
     @classmethod
     def _name(cls, value: str) -> str:
-        if value and not re.fullmatch(r"[A-Za-z0-9_.-]+", value):
-            raise ValueError("a mission name uses letters, digits, '_', '-' and '.' only (it names the run folder)")
+        """The name names the run folder: letters of any script (電池テスト), never a separator,
+        a space or a character a file system refuses."""
+        if value and not all(_name_char(c) for c in value):
+            raise ValueError(
+                "a mission name uses letters (of any script), digits, '_', '-' and '.' only (it names the run folder)"
+            )
+        if len(value.encode("utf-8")) > MAX_NAME_BYTES:
+            raise ValueError(f"a mission name has at most {MAX_NAME_BYTES} bytes in UTF-8 (it names the run folder)")
         return value
+
+
+def _name_char(char: str) -> bool:
+    return char.isalnum() or char in "_-." or unicodedata.category(char).startswith("M")
 
 
 def key_spec(value: KeySpec | str) -> KeySpec:
@@ -137,6 +156,7 @@ _TYPE_NAMES: dict[str, Any] = {
     "None": type(None),
 }
 _TOKEN = re.compile(r"\s*(?:([A-Za-z_]+)|(.))")
+_MAX_TYPE_DEPTH = 10  # list[dict[str, list[float]]] is 3
 
 
 def parse_type(text: str) -> Any:
@@ -145,6 +165,12 @@ def parse_type(text: str) -> Any:
     A tiny grammar on purpose: types in mission files are data, never evaluated as code.
     """
     tokens = [(m.group(1), m.group(2)) for m in _TOKEN.finditer(text.strip())]
+    depth = deepest = 0
+    for _, symbol in tokens:
+        depth += (symbol == "[") - (symbol == "]")
+        deepest = max(deepest, depth)
+    if deepest > _MAX_TYPE_DEPTH:  # parsed recursively: refuse before
+        raise ValueError(f"type {text[:40]!r}... is nested more than {_MAX_TYPE_DEPTH} levels deep")
     position = 0
 
     def peek() -> tuple[str | None, str | None]:

@@ -19,6 +19,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from robots.limits import MAX_IMAGE_BYTES
+from robots.located_yaml import FileRefused, NotText, YamlProblem, load_data, read_bytes
+
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 MODES = ("trinary", "scale", "raw")
 _SAVE_OCCUPIED, _SAVE_FREE, _SAVE_UNKNOWN = 0, 254, 205
@@ -103,9 +106,11 @@ class GridMap:
 def read_pgm(path: Path) -> tuple[np.ndarray, int]:
     """A PGM image (binary P5 or ASCII P2, 8 or 16 bit) as a 2-D array, top row first, and its maxval."""
     try:
-        raw = path.read_bytes()
+        raw = read_bytes(path, MAX_IMAGE_BYTES, "map image")  # regular files only, bounded
     except FileNotFoundError:
         raise MapError(path, "image", "the image file does not exist") from None
+    except FileRefused as exc:
+        raise MapError(path, "image", f"cannot read it: {exc}") from None
     except OSError as exc:
         raise MapError(path, "image", f"cannot read it: {exc.strerror}") from None
     tokens: list[bytes] = []
@@ -177,15 +182,16 @@ def load(path: str | Path) -> GridMap:
     """Load a map_server map (and its ``<name>.places.yaml`` beside it, if any)."""
     path = Path(path)
     try:
-        header = yaml.safe_load(path.read_text(encoding="utf-8"))
+        header = load_data(path)  # bounded like every YAML file botstage reads
     except FileNotFoundError:
         raise MapError(path, "file", "no such map file") from None
-    except UnicodeDecodeError:
+    except NotText:
         raise MapError(path, "file", "not a YAML header (is this the image? give the .yaml beside it)") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark else ""
-        raise MapError(path, "header", f"not valid YAML{where}") from None
+    except (FileRefused, OSError) as exc:
+        raise MapError(path, "file", f"cannot read it: {exc}") from None
+    except YamlProblem as exc:
+        problem = exc.problem
+        raise MapError(path, "header", f"not valid YAML at line {problem.location.line}: {problem.message}") from None
     if not isinstance(header, dict):
         raise MapError(path, "header", "a map header is a mapping (image:, resolution:, origin:, ...)")
     image = header.get("image")
@@ -266,8 +272,8 @@ def save(grid: GridMap, path: str | Path) -> None:
 def load_places(path: Path, grid: GridMap) -> dict[str, tuple[float, float, float]]:
     """Named places: ``places: {name: [x, y, yaw]}``, each on a free cell of the map."""
     try:
-        content = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError:
+        content = load_data(path)
+    except (OSError, ValueError):
         raise MapError(path, "places", "not valid YAML") from None
     places = content.get("places") if isinstance(content, dict) else None
     if not isinstance(places, dict):

@@ -21,7 +21,9 @@ from robots.located_yaml import Loaded, Problem, find_yaml, load_document
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """Unknown keys are errors, and so are NaN and infinities (a NaN limit turns its check off)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class Base(_Strict):

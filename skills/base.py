@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import math
 import random
 import threading
 from collections.abc import Callable, Generator, Mapping
@@ -15,11 +16,15 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 from functools import cache
 from types import MappingProxyType
-from typing import Any, ClassVar, Literal, NamedTuple, Protocol, get_args
+from typing import Annotated, Any, ClassVar, Literal, NamedTuple, Protocol, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, TypeAdapter, ValidationError
+from pydantic import BaseModel, ConfigDict, PydanticUserError, TypeAdapter, ValidationError
 
 from robots.clock import Clock
+
+# port types for times: In(Seconds) refuses negatives, NaN, infinities and more than MAX_SECONDS
+from robots.limits import PositiveSeconds as PositiveSeconds
+from robots.limits import Seconds as Seconds
 
 SUCCESS = "success"
 FAILURE = "failure"
@@ -37,12 +42,23 @@ MISSING: Any = _Missing()
 
 
 @cache
-def _adapter(tp: Any) -> TypeAdapter[Any]:
+def _adapter(tp: Any, finite: bool = False) -> TypeAdapter[Any]:
+    if finite:
+        try:
+            return TypeAdapter(tp, config=ConfigDict(allow_inf_nan=False))
+        except PydanticUserError:  # a model has its own config
+            pass
     return TypeAdapter(tp)
+
+
+def plain_type(tp: Any) -> Any:
+    """The type without its constraints: ``Seconds`` is a ``float``."""
+    return get_args(tp)[0] if get_origin(tp) is Annotated else tp
 
 
 def type_name(tp: Any) -> str:
     """``float``, ``list[float]``, ``Any``: how a type reads in an error message."""
+    tp = plain_type(tp)
     if tp is Any:
         return "Any"
     if get_args(tp) or not isinstance(tp, type):
@@ -50,21 +66,29 @@ def type_name(tp: Any) -> str:
     return tp.__name__
 
 
-def check_type(tp: Any, value: Any) -> Any:
+_OUT_OF_RANGE = frozenset({"finite_number", "greater_than", "greater_than_equal", "less_than", "less_than_equal"})
+
+
+def check_type(tp: Any, value: Any, *, finite: bool = False) -> Any:
     """Validate ``value`` against ``tp`` strictly (ints are accepted for floats, nothing else is coerced).
 
-    Returns the validated value; raises ``TypeError`` with a readable message.
+    ``finite``: refuse NaN and infinities as numbers of ``tp`` (a value written in a mission;
+    a value a sensor wrote may be NaN). Returns the validated value; raises ``TypeError`` with a
+    readable message.
     """
     if tp is Any or tp is object:
         return value
     try:
-        return _adapter(tp).validate_python(value, strict=True)
+        return _adapter(tp, finite).validate_python(value, strict=True)
     except ValidationError as exc:
         shown = repr(value)
         if len(shown) > 60:
             shown = shown[:57] + "..."
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first.get("loc", ()))
+        if first["type"] in _OUT_OF_RANGE:  # the right type, a wrong value: say only what is wrong
+            message = first["msg"][:1].lower() + first["msg"][1:]
+            raise TypeError(f"{where}: {message}" if where else message) from None
         detail = f" ({where}: {first['msg']})" if where else f" ({first['msg']})"
         raise TypeError(f"expected {type_name(tp)}, got {type(value).__name__} {shown}{detail}") from None
 
@@ -209,6 +233,22 @@ class SkillContext:
 SkillRun = Generator[Any, Any, "Outcome | str | None"]
 
 
+def _non_finite(value: Any, loc: tuple[Any, ...]) -> Generator[tuple[tuple[Any, ...], float], None, None]:
+    """Every NaN or infinity in a value (models, mappings and lists walked), with its place."""
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            yield loc, value
+    elif isinstance(value, BaseModel):
+        for name in type(value).model_fields:
+            yield from _non_finite(getattr(value, name), (*loc, name))
+    elif isinstance(value, Mapping):
+        for key, item in value.items():
+            yield from _non_finite(item, (*loc, key))
+    elif isinstance(value, list | tuple):
+        for index, item in enumerate(value):
+            yield from _non_finite(item, (*loc, index))
+
+
 class Skill:
     """Base class of every skill.
 
@@ -263,7 +303,20 @@ class Skill:
         if isinstance(params, BaseModel):
             self.params = params
         else:
-            self.params = self.Params(**(params or {}))
+            self.params = self.validate_params(params or {})
+
+    @classmethod
+    def validate_params(cls, params: Mapping[str, Any]) -> BaseModel:
+        """The skill's parameters from a mission, a profile or code; raises ValidationError.
+
+        NaN and infinities are refused wherever they are written (pydantic's own message):
+        a parameter is a setting, and a NaN one silently turns every comparison off.
+        """
+        validated = cls.Params(**params)  # "nan" as a string becomes a NaN here: look after
+        odd = [{"type": "finite_number", "loc": loc, "input": value} for loc, value in _non_finite(validated, ())]
+        if odd:
+            raise ValidationError.from_exception_data(cls.Params.__name__, odd)  # type: ignore[arg-type]
+        return validated
 
     def run(self, ctx: SkillContext, **inputs: Any) -> SkillRun:
         raise NotImplementedError(f"skill {self.name!r} does not implement run()")

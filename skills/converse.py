@@ -25,7 +25,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.chat.cache import LoadedBrain, shared_brain
 from skills.chat.chatbot import Chatbot
 from skills.chat.kernel import calendar
@@ -120,7 +120,7 @@ class Converse(Skill):
             "COMPLIMENT, PHOTO CANCELLED, GOODBYE)",
         ),
         "visitor": In(str, default="visitor", doc="who said it: each visitor has a memory of their own"),
-        "timeout": In(float, default=10.0, doc="s of mission time to wait for the chatbot to load and answer"),
+        "timeout": In(Seconds, default=10.0, doc="s of mission time to wait for the chatbot to load and answer"),
     }
     outputs = {
         "reply": Out(str, doc="Maya's answer; '' after a command or no input"),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.perception.crowd import CROWD_DISTANCE
 
 _EPSILON = 1e-9
@@ -20,10 +20,10 @@ class DetectCrowd(Skill):
     name = "detect_crowd"
     description = "Look for a crowd for up to `duration` s; its centre of mass on the map, size and members."
     inputs = {
-        "duration": In(float, default=5.0, doc="s of mission time to look"),
+        "duration": In(Seconds, default=5.0, doc="s of mission time to look"),
         "distance": In(float, default=CROWD_DISTANCE, doc="m: each member within this of another"),
         "min_size": In(int, default=2, doc="people in a crowd, at least (the paper: more than one)"),
-        "confirm": In(float, default=1.0, doc="s a crowd must last before it counts"),
+        "confirm": In(Seconds, default=1.0, doc="s a crowd must last before it counts"),
     }
     outputs = {
         "centre": Out(list[float], doc="[x, y] centre of mass in the map frame"),

@@ -4,6 +4,10 @@
 Expressions are parsed with Python's ``ast`` and interpreted from a whitelist of node types:
 no ``eval``, no attribute access on objects, no calls except a few pure functions.
 A dotted name ``robot.mode`` is the namespaced key ``robot/mode``.
+
+Conditions come from mission files, so their size is bounded (``robots.limits``): their length,
+nesting and number of parts before anything is compiled, and at evaluation the lists and strings
+they build (``x * 1000000000``), the integers they multiply and the digits they round to.
 """
 
 from __future__ import annotations
@@ -15,28 +19,74 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
+from robots import limits
+
 Lookup = Callable[[str], Any]
 Evaluator = Callable[[Lookup], Any]
 
 _CONSTANTS = {"true": True, "false": False, "null": None, "none": None, "True": True, "False": False, "None": None}
+
+
+class _TooLarge(ValueError):
+    """A value a condition would build beyond the limits: refused before it is built."""
+
+
+_SEQUENCES = (str, bytes, list, tuple)
+
+
+def _length(length: int) -> None:
+    if length > limits.MAX_SEQUENCE_LENGTH:
+        raise _TooLarge(f"it would build a list or string of {length:,} items (at most {limits.MAX_SEQUENCE_LENGTH:,})")
+
+
+def _mul(a: Any, b: Any) -> Any:
+    """``*``, refusing repetitions and integers too large to build."""
+    if isinstance(a, int) and isinstance(b, int):
+        if a.bit_length() + b.bit_length() > limits.MAX_INT_BITS:
+            raise _TooLarge(f"it would build an integer of more than {limits.MAX_INT_BITS:,} bits")
+    elif isinstance(a, _SEQUENCES) and isinstance(b, int):
+        _length(len(a) * b)
+    elif isinstance(b, _SEQUENCES) and isinstance(a, int):
+        _length(len(b) * a)
+    return a * b
+
+
+def _add(a: Any, b: Any) -> Any:
+    if isinstance(a, _SEQUENCES) and isinstance(b, _SEQUENCES):
+        _length(len(a) + len(b))
+    return a + b
+
+
+def _mod(a: Any, b: Any) -> Any:
+    if isinstance(a, str | bytes):
+        raise TypeError("'%' formatting of strings is not supported in conditions")
+    return a % b
+
+
+def _round(number: Any, ndigits: Any = None) -> Any:
+    if isinstance(ndigits, int) and abs(ndigits) > 1000:
+        raise _TooLarge(f"round to {ndigits} digits (at most 1000 either way)")
+    return round(number, ndigits)
+
+
 _FUNCTIONS: dict[str, Callable[..., Any]] = {
     "abs": abs,
     "min": min,
     "max": max,
     "len": len,
-    "round": round,
+    "round": _round,
     "int": int,
     "float": float,
     "str": str,
     "bool": bool,
 }
 _BINARY = {
-    ast.Add: operator.add,
+    ast.Add: _add,
     ast.Sub: operator.sub,
-    ast.Mult: operator.mul,
+    ast.Mult: _mul,
     ast.Div: operator.truediv,
     ast.FloorDiv: operator.floordiv,
-    ast.Mod: operator.mod,
+    ast.Mod: _mod,
 }
 _COMPARE = {
     ast.Eq: operator.eq,
@@ -60,7 +110,8 @@ class ExpressionError(ValueError):
         self.column = column
 
     def __str__(self) -> str:
-        return f"{self.message} in {self.source!r} (column {self.column + 1})"
+        shown = self.source if len(self.source) <= 80 else self.source[:60] + "..."
+        return f"{self.message} in {shown!r} (column {self.column + 1})"
 
 
 class EvaluationError(RuntimeError):
@@ -96,6 +147,8 @@ class Expression:
             return self._evaluate(guarded)
         except _LookupFailed as failed:
             raise failed.error from None
+        except _TooLarge as exc:
+            raise EvaluationError(f"{self.source!r}: {exc}") from None
         except Exception as exc:
             raise EvaluationError(f"{self.source!r}: {type(exc).__name__}: {exc}") from None
 
@@ -197,16 +250,39 @@ class _Compiler:
         raise self.fail(node, f"'{type(node).__name__}' is not allowed in a condition")
 
 
+def _check_size(body: ast.expr, text: str) -> None:
+    """Refuse a condition too deep or too large before compiling it (compiling recurses)."""
+    count = 0
+    pending = [(body, 1)]
+    while pending:
+        node, depth = pending.pop()
+        count += 1
+        if depth > limits.MAX_CONDITION_DEPTH:
+            message = f"nested more than {limits.MAX_CONDITION_DEPTH} levels deep"
+            raise ExpressionError(message, text, getattr(node, "col_offset", 0))
+        if count > limits.MAX_CONDITION_NODES:
+            message = f"more than {limits.MAX_CONDITION_NODES} names, values and operators"
+            raise ExpressionError(message, text, getattr(node, "col_offset", 0))
+        pending.extend((child, depth + 1) for child in ast.iter_child_nodes(node) if isinstance(child, ast.expr))
+
+
 @lru_cache(maxsize=1024)
 def compile_expression(source: str) -> Expression:
     """Parse ``source`` once; raises ``ExpressionError`` with the column of the problem."""
     if not isinstance(source, str) or not source.strip():
         raise ExpressionError("empty condition", str(source))
     text = source.strip()
+    if len(text) > limits.MAX_CONDITION_CHARS:
+        raise ExpressionError(
+            f"a condition has at most {limits.MAX_CONDITION_CHARS:,} characters, this one {len(text):,}", text
+        )
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         raise ExpressionError(f"syntax error: {exc.msg}", text, max((exc.offset or 1) - 1, 0)) from None
+    except (RecursionError, MemoryError):  # Python's own parser gives up on deep nesting
+        raise ExpressionError(f"nested more than {limits.MAX_CONDITION_DEPTH} levels deep", text) from None
+    _check_size(tree.body, text)
     compiler = _Compiler(text)
     evaluate = compiler.compile(tree.body)
     return Expression(text, frozenset(compiler.keys), evaluate)

@@ -16,7 +16,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.speech.recognizer import COMMANDS, MODES, Recognition, shared_recognizer
 from skills.speech.vad import VoiceActivityDetector
 from skills.speech.wav import RATE
@@ -41,7 +41,7 @@ class Listen(Skill):
     inputs = {
         "mode": In(str, default="command", doc="`command`: one of `commands`; `free`: any English (language model)"),
         "commands": In(list[str], default=[], doc="the commands to accept (default: all five)"),
-        "timeout": In(float, default=10.0, doc="s of mission time to wait for an accepted utterance"),
+        "timeout": In(Seconds, default=10.0, doc="s of mission time to wait for an accepted utterance"),
     }
     outputs = {
         "command": Out(str, doc="the command heard, upper case (empty in free mode when none was said)"),

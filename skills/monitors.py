@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from skills.base import In, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.nav.stack import sonar_points
 
 
@@ -34,7 +34,7 @@ class WatchBattery(Skill):
     description = "Until cancelled: write the battery's percent and latch `low_key` once it stays below `low`."
     inputs = {
         "low": In(float, default=20.0, doc="percent below which the battery is low"),
-        "confirm": In(float, default=3.0, doc="s the percent must stay below `low` before it counts"),
+        "confirm": In(Seconds, default=3.0, doc="s the percent must stay below `low` before it counts"),
         "percent_key": In(str, doc="the float key for the percent (to 0.5 %)", names_key="write"),
         "low_key": In(str, doc="the bool key set true once the battery is low", names_key="write"),
     }
@@ -110,7 +110,7 @@ class Odometer(Skill):
     description = "Until cancelled: add up the distance the odometry says the robot drove, into `key` (metres)."
     inputs = {
         "key": In(str, doc="the float key for the distance (to the centimetre)", names_key="write"),
-        "every": In(float, default=1.0, doc="s between writes (and one when cancelled)"),
+        "every": In(Seconds, default=1.0, doc="s between writes (and one when cancelled)"),
     }
 
     def run(self, ctx: SkillContext, key: str, every: float) -> SkillRun:

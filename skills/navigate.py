@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.expression import EvaluationError, compile_expression
 from skills.nav.navigator import OUTCOMES, NavParams, NavResult, drive_to
 from skills.nav.stack import NavStack
@@ -52,7 +52,7 @@ NAV_OUTPUTS = {
     "result": Out(str, doc="the outcome's name, for a tree to branch on (e.g. to recover when blocked)"),
 }
 CANCEL = In(str, default="false", doc="a condition that cancels the drive once true", expression=True)
-TIMEOUT = In(float, default=0.0, doc="s of mission time; 0: from the path's length")
+TIMEOUT = In(Seconds, default=0.0, doc="s of mission time; 0: from the path's length")
 
 
 class Navigate(Skill):

@@ -15,7 +15,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.delivery.inbox import Order, OrderError, parse_order
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
@@ -132,7 +132,7 @@ class TakeOrder(Skill):
         "received": RECEIVED,
         "failed": FAILED,
         "tables": In(list[str], default=[], doc="the tables served (default: the map's places named table_*)"),
-        "wait": In(float, default=0.0, doc="s of mission time to wait for an order when there is none"),
+        "wait": In(Seconds, default=0.0, doc="s of mission time to wait for an order when there is none"),
     }
     outputs = {
         "order": Out(dict[str, Any], doc="the order taken: {id, table, item, source}"),

@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.outbox.settings import OutboxSettings
 
 SHOWN_STATES = {"pending": "queued", "uploaded": "uploaded", "rejected": "rejected", "damaged": "damaged"}
@@ -44,7 +44,7 @@ class Upload(Skill):
         "photo": In(str, doc="path of a JPEG or PNG file (a relative one is looked for in the run folder first)"),
         "metadata": In(dict[str, Any], default={}, doc="JSON values shown beside the photo in the gallery"),
         "wait": In(bool, default=False, doc="run until the gallery has it (false: return once it is queued)"),
-        "timeout": In(float, default=60.0, doc="with wait: s of mission time before giving up waiting"),
+        "timeout": In(Seconds, default=60.0, doc="with wait: s of mission time before giving up waiting"),
     }
     outputs = {
         "photo_id": Out(str, doc="the photo's SHA-256: its identity in the outbox and the gallery"),

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9
@@ -11,7 +11,7 @@ _EPSILON = 1e-9
 class Wait(Skill):
     name = "wait"
     description = "Succeed once `duration` seconds of mission time have passed."
-    inputs = {"duration": In(float, doc="seconds of mission time (simulated or real)")}
+    inputs = {"duration": In(Seconds, doc="seconds of mission time (simulated or real)")}
 
     def run(self, ctx: SkillContext, duration: float) -> SkillRun:
         if duration < 0:

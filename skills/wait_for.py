@@ -6,7 +6,7 @@ a mission waits (a scenario's event, a monitor's flag, an operator's button).
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.expression import EvaluationError, compile_expression
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
@@ -18,7 +18,7 @@ class WaitFor(Skill):
     description = "Succeed as soon as `condition` holds on the blackboard; `timeout` after `timeout` s of mission time."
     inputs = {
         "condition": In(str, doc="e.g. `guest_button` or `not front_blocked`", expression=True),
-        "timeout": In(float, doc="s of mission time to wait"),
+        "timeout": In(Seconds, doc="s of mission time to wait"),
     }
     outcomes = ("timeout",)
 

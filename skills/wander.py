@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from skills.nav.navigator import NavParams, drive_to
 from skills.navigate import CANCEL, cancel_condition, nav_stack
 
@@ -23,7 +23,7 @@ class Wander(Skill):
     inputs = {
         "checkpoints": In(list[str], default=[], doc="places to visit; empty: every place of the map"),
         "order": In(str, default="sequence", doc="`sequence` or `random`"),
-        "pause": In(float, default=3.0, doc="s to stay at each checkpoint"),
+        "pause": In(Seconds, default=3.0, doc="s to stay at each checkpoint"),
         "rounds": In(int, default=0, doc="how many times round; 0: until stopped"),
         "stops": In(int, default=0, doc="return after reaching this many checkpoints (0: whole rounds)"),
         "checkpoint_key": In(

@@ -277,8 +277,9 @@ def test_draw_gives_every_format_of_the_cli() -> None:
         "mermaid", machine=True
     )
     assert mission.draw("dot", machine=True).startswith("digraph")
+    assert mission.draw("unicode", machine=True).startswith("machine hello_api")
     with pytest.raises(ValueError, match="unknown format"):
-        mission.draw("unicode", machine=True)
+        mission.draw("gif", machine=True)
     with pytest.raises(ValueError, match="no tree 'nope'"):
         mission.draw(tree="nope")
 

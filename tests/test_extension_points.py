@@ -108,7 +108,10 @@ def test_validate_checks_the_plugin_kinds_options_where_they_are_written(kit, mi
     done = botstage(kit, missions, "validate", "kit_broken.yaml")
     assert done.returncode == 1
     errors = done.stderr.splitlines()
-    assert "kit_broken.yaml:5:9: error: unless needs a condition (a string), got 3" in errors
+    assert (
+        "kit_broken.yaml:5:9: error: unless: input should be a valid string (unless takes a condition (a string))"
+        in errors
+    )
     assert "kit_broken.yaml:8:5: error: first of 'round_robin': input should be greater than or equal to 0" in errors
     assert any(e.startswith("kit_broken.yaml:9:5: error: unknown option 'shuffle' for 'round_robin'") for e in errors)
 

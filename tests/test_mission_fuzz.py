@@ -1,4 +1,4 @@
-"""Mutated missions end in a valid load or located errors, never a traceback (2,000 cases)."""
+"""Mutated missions end in a valid load or located errors, never a traceback (2,000 + 300 cases)."""
 
 from __future__ import annotations
 
@@ -34,6 +34,15 @@ REPLACEMENTS: list[Any] = [
     "estop and",
     "success",
     1e308,
+    float("nan"),
+    float("-inf"),
+    -1e308,
+    "1e5",
+    "電池",
+    "電池 > 20 and not 停止",
+    {"電池": 80},
+    "x * 1000000000",
+    "not " * 60 + "x",
 ]
 
 
@@ -94,4 +103,62 @@ def test_mutated_missions_load_or_fail_with_located_errors(text: str) -> None:
             assert problem.location.line >= 1 and problem.location.col >= 1
             assert str(problem).startswith(f"{problem.location.file}:{problem.location.line}:")
             assert problem.message
+            assert not problem.message.startswith(INTERNAL), problem.message
+
+
+TOKENS = [
+    "&a ",
+    "*a",
+    "<<: *a",
+    "!!int ",
+    "!!float ",
+    "!!binary ",
+    "!!timestamp ",
+    "!!set ",
+    "!foo ",
+    "? ",
+    ": ",
+    "- ",
+    "[",
+    "]",
+    "{",
+    "}",
+    "\t",
+    "\n",
+    "'",
+    '"',
+    "%YAML 1.1\n",
+    "---\n",
+    "...\n",
+    "#",
+    "|",
+    ">",
+    "\\",
+    "\x00",
+    "\x85",
+    "\ufeff",
+    "電池",
+    "=",
+    "~",
+    ".nan",
+    "1e999",
+    "0x",
+    "9" * 5000,
+    "!!python/object:os.system ",
+]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(MISSIONS), st.lists(st.tuples(st.floats(0, 1), st.sampled_from(TOKENS)), min_size=1, max_size=6))
+def test_missions_with_yaml_tokens_inserted_fail_with_located_errors(text: str, edits: list[tuple[float, str]]) -> None:
+    """Below the data: the YAML itself broken (tabs, NULs, tags, anchors, a huge integer)."""
+    for where, token in edits:
+        at = int(where * len(text))
+        text = text[:at] + token + text[at:]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "mutant.yaml"
+        path.write_text(text, encoding="utf-8")
+        for problem in check(path).problems:
+            assert problem.location.file.endswith("mutant.yaml")
+            assert problem.location.line >= 1 and problem.location.col >= 1
             assert not problem.message.startswith(INTERNAL), problem.message

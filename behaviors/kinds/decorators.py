@@ -4,7 +4,7 @@ on the mission clock, and guards on blackboard conditions."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, Annotated, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import py_trees
 from py_trees.common import Status
@@ -12,11 +12,10 @@ from pydantic import Field
 
 from behaviors.decorators import ClockTimeout, Guard
 from behaviors.kinds.base import DecoratorKind, KindOptions, NodeBuild
+from robots.limits import MAX_SECONDS, MAX_TIMES, PositiveSeconds, Seconds, Times
 
 if TYPE_CHECKING:
     from behaviors.runtime import Runtime
-
-Times = Annotated[int, Field(ge=1)]
 
 
 class Inverter(DecoratorKind):
@@ -72,7 +71,7 @@ class Retry(DecoratorKind):
     name = "retry"
     description = "run the child again after a failure, up to this many failures"
     argument = Times
-    argument_help = "a whole number of times >= 1"
+    argument_help = f"a whole number of times from 1 to {MAX_TIMES:,}"
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour:
         return py_trees.decorators.Retry(name=b.name, child=b.child, num_failures=b.value)
@@ -85,7 +84,7 @@ class Repeat(DecoratorKind):
     name = "repeat"
     description = "run the child again after a success, this many successes in all (or forever)"
     argument = Times | Literal["forever", -1]
-    argument_help = "a whole number of times >= 1 (or 'forever')"
+    argument_help = f"a whole number of times from 1 to {MAX_TIMES:,}, or 'forever'"
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour:
         times = -1 if b.value in ("forever", -1) else b.value
@@ -98,8 +97,8 @@ class Repeat(DecoratorKind):
 class Timeout(DecoratorKind):
     name = "timeout"
     description = "fail, halting the child, after this many seconds of mission time"
-    argument = Annotated[float, Field(gt=0)]
-    argument_help = "a positive number of seconds"
+    argument = PositiveSeconds
+    argument_help = f"a positive number of seconds, at most {MAX_SECONDS:,.0f}"
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour:
         node = ClockTimeout(name=b.name, child=b.child, duration=float(b.value), runtime=b.runtime)
@@ -165,8 +164,8 @@ class _DelayBehaviour(py_trees.decorators.Decorator):
 class Delay(DecoratorKind):
     name = "delay"
     description = "wait this many seconds of mission time, then run the child"
-    argument = Annotated[float, Field(ge=0)]
-    argument_help = "a number of seconds >= 0"
+    argument = Seconds
+    argument_help = f"a number of seconds from 0 to {MAX_SECONDS:,.0f}"
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour:
         return _DelayBehaviour(b.name, b.child, float(b.value), b.runtime)

@@ -22,7 +22,7 @@ from missions.api.machine import StateMachine
 from missions.api.nodes import NodeLike, as_node
 from missions.api.specs import machine_of, node_of
 from missions.api.where import caller, caller_file
-from missions.check import Checked, check_loaded, describe_part, root_spec_path
+from missions.check import Checked, check_loaded, describe_part
 from missions.loader import Loaded, Location, Problem, load
 
 if TYPE_CHECKING:  # the runner loads the simulator and friends: only when a mission runs
@@ -295,26 +295,23 @@ class Mission:
         """A picture of what runs (or of its machine, or of a named tree), as ``botstage tree`` /
         ``botstage machine`` draw it: text for ascii, unicode, dot, svg, mermaid and json, bytes
         for png. ``fmt`` defaults to unicode for trees, ascii for machines."""
-        from behaviors.render import MACHINE_FORMATS, TREE_FORMATS, render
+        from behaviors.render import FORMATS, render
+        from missions.pictures import machine_picture
 
         fmt = fmt or ("ascii" if machine else "unicode")
-        formats = MACHINE_FORMATS if machine else TREE_FORMATS
-        if fmt not in formats:
-            raise ValueError(f"unknown format {fmt!r}; use one of {', '.join(formats)}")
+        if fmt not in FORMATS:
+            raise ValueError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
         if tree is not None and machine:
             raise ValueError("draw a named tree or the machine, not both")
         checked = self.checked(registry)
         spec = checked.mission
         assert spec is not None
-        if tree is not None:
-            if tree not in spec.trees:
-                raise ValueError(f"no tree {tree!r} (trees: {', '.join(spec.trees) or 'none'})")
-            spec_path: tuple[str, ...] = ("trees", tree)
-        elif machine and spec.machine is not None:
-            spec_path = ("machine",)
-        else:  # like `botstage machine` on a mission without one: the tree it runs
-            spec_path = root_spec_path(spec)  # type: ignore[assignment]
-        picture = render(describe_part(checked, spec_path), fmt)
+        if tree is not None and tree not in spec.trees:
+            raise ValueError(f"no tree {tree!r} (trees: {', '.join(spec.trees) or 'none'})")
+        item = describe_part(checked, ("trees", tree) if tree is not None else None)
+        if machine:  # as `botstage machine`: the machines it runs wherever they sit, else its tree
+            item = machine_picture(checked, item, Path(spec.name), lambda line: None)
+        picture = render(item, fmt)
         return picture if fmt == "png" else picture.decode()
 
     def run(self, *, out: Path | None = None, registry: Registry | None = None, **options: Any) -> RunResult:

@@ -113,3 +113,13 @@ def bench_speech(
     missed = bench.missed(results)
     if missed and not quick:
         _stderr([f"under target: {', '.join(missed)}"])
+
+
+@bench_app.command("validate")
+def bench_validate(quick: bool = typer.Option(False, help="2,000 nodes, one repeat: a smoke test")) -> None:
+    """`validate` of 20,000-node missions (target < 5 s) against yaml.safe_load of the same file."""
+    from missions.bench import bench_validate as bench
+
+    slow = bench.missed(bench.main(quick=quick))
+    if slow and not quick:
+        _stderr([f"over target: {', '.join(slow)}"])
