@@ -13,7 +13,8 @@ from typing import Any
 
 import pytest
 
-from missions.scenario import Result, load_scenario, run_scenario
+from missions.scenario import Result, Scenario, load_scenario
+from missions.scenario_suite import run_in_folder
 
 
 def is_scenario(path: Path, root: Path) -> bool:
@@ -45,8 +46,13 @@ class ScenarioFile(pytest.File):
 class ScenarioItem(pytest.Item):
     def runtest(self) -> None:
         factory = getattr(self.config, "_tmp_path_factory", None)  # pytest's managed, pruned temp folders
-        out = factory.mktemp(f"scenario-{self.name}") if factory else Path(tempfile.mkdtemp(prefix="botstage-"))
-        result = run_scenario(load_scenario(self.path), out)
+
+        def folder(scenario: Scenario) -> Path:
+            if factory is not None:
+                return factory.mktemp(f"scenario-{self.name}")
+            return Path(tempfile.mkdtemp(prefix=f"botstage-{scenario.name}-"))
+
+        result = run_in_folder(load_scenario(self.path), folder)
         if not result.passed:
             raise ScenarioFailed(result)
 

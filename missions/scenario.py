@@ -9,6 +9,9 @@ A scenario file (YAML, usually `missions/scenarios/<mission>/<name>.yaml`)::
       wait:                            # a script of calls, in order; the last one repeats
         - {outcome: success, duration: 2}
         - {outcome: failure, reason: "motor stalled"}
+      count:                           # writes go through the node's key ports, at `after` s
+        - {duration: 0.3, writes: [{after: 0.2, set: {visits: 5}}]}
+      spin: [{until_cancelled: true}]  # RUNNING until the engine cancels it
       log: {always: {outcome: success}}
       check: {cycle: [{outcome: success}, {outcome: failure}]}
       detect: {probability: {success: 0.7, no_crowd: 0.3}}   # seeded: same every run
@@ -28,63 +31,51 @@ A scenario file (YAML, usually `missions/scenarios/<mission>/<name>.yaml`)::
       never: ["estop and greeted == false"]
 
 Mocks have the real skill's ports and outcomes: a scripted outcome or output the skill does not
-declare is a located validation error, so trees and machines cannot tell the difference.
+declare is a located validation error, so trees and machines cannot tell the difference. Every
+key, state, counter and skill a scenario names is checked against the mission
+(``missions/scenario_check.py``); a `never` condition that cannot be evaluated fails the run.
+Mocks are ``missions/mocks.py``; ``from_trace`` (``missions/replay.py``) writes a scenario that
+replays a recorded run.
 """
 
 from __future__ import annotations
 
 import difflib
 import json
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from behaviors.blackboard import BlackboardError
+from behaviors.blackboard import MissingKeyError
 from behaviors.engine import Engine
 from behaviors.suggest import did_you_mean
 from missions.gallery.service import set_gallery
 from missions.loader import Loaded, Location, Problem, load
+from missions.mocks import Call, Rule, Write, calls_of, mock_of
+from missions.replay import from_trace
 from missions.runner import MissionInvalid, RunError, StopRun, run
+from missions.scenario_check import MissionFacts, check_against_mission, mission_facts
 from missions.session.observers import EventRecorder
-from skills.base import Outcome, Skill, SkillContext, SkillRun, type_name
-from skills.expression import EvaluationError, ExpressionError, compile_expression
+from skills.base import Skill
+from skills.expression import EvaluationError, compile_expression
 from skills.registry import Registry
 
-
-class Call(BaseModel):
-    """One scripted call of a mocked skill."""
-
-    model_config = ConfigDict(extra="forbid")
-    outcome: str | None = Field(default=None, description="default: the skill's success outcome")
-    reason: str = ""
-    outputs: dict[str, Any] = Field(default_factory=dict)
-    duration: float = Field(default=0.0, ge=0, description="sim seconds RUNNING before the outcome")
-    raises: str | None = Field(default=None, description="raise an error with this message instead")
-    times: int = Field(default=1, ge=1, description="this call, this many times in a row")
-
-
-class Rule(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    always: Call | None = None
-    cycle: list[Call] | None = None
-    probability: dict[str, float] | None = None
-
-    @model_validator(mode="after")
-    def _one(self) -> Rule:
-        given = [k for k in ("always", "cycle", "probability") if getattr(self, k) is not None]
-        if len(given) != 1:
-            raise ValueError("a rule is exactly one of always, cycle, probability")
-        if self.cycle is not None and not self.cycle:
-            raise ValueError("cycle needs at least one call")
-        weights = self.probability
-        if weights is not None and (not weights or any(p < 0 for p in weights.values()) or not sum(weights.values())):
-            raise ValueError("probability maps outcomes to non-negative weights, not all zero")
-        return self
+__all__ = [
+    "Call",
+    "Result",
+    "Rule",
+    "Scenario",
+    "ScenarioSpec",
+    "Write",
+    "from_trace",
+    "load_scenario",
+    "location",
+    "mock_of",
+    "run_scenario",
+]
 
 
 class Event(BaseModel):
@@ -133,65 +124,6 @@ class ScenarioSpec(BaseModel):
     blackboard: dict[str, Any] = Field(default_factory=dict)
     events: list[Event] = Field(default_factory=list)
     expect: Expect = Field(default_factory=Expect)
-
-
-# -- mocks --------------------------------------------------------------------------------
-
-
-def mock_of(real: type[Skill], script: list[Call] | Rule) -> type[Skill]:
-    """A skill with ``real``'s contract whose runs follow ``script``.
-
-    Calls are counted per mock class, across every node that uses the skill, in tick order:
-    deterministic. A new class is made for every scenario run, so counts start at zero.
-    """
-    calls = {"n": 0}
-    if isinstance(script, list):
-        script = [call for call in script for _ in range(call.times)]
-    elif script.cycle is not None:
-        script = Rule(cycle=[call for call in script.cycle for _ in range(call.times)])
-
-    def next_call(ctx: SkillContext) -> Call:
-        n = calls["n"]
-        calls["n"] += 1
-        if isinstance(script, list):
-            return script[min(n, len(script) - 1)]
-        if script.always is not None:
-            return script.always
-        if script.cycle is not None:
-            return script.cycle[n % len(script.cycle)]
-        assert script.probability is not None
-        pick, total = ctx.rng.random() * sum(script.probability.values()), 0.0
-        for outcome, weight in script.probability.items():
-            total += weight
-            if pick < total:
-                return Call(outcome=outcome)
-        return Call(outcome=next(iter(script.probability)))
-
-    def run(self: Skill, ctx: SkillContext, **inputs: Any) -> SkillRun:
-        call = next_call(ctx)
-        deadline = ctx.clock.now() + call.duration - 1e-9
-        while ctx.clock.now() < deadline:
-            yield
-        if call.raises is not None:
-            raise RuntimeError(call.raises)
-        return Outcome(call.outcome or real.success_outcomes[0], call.reason, call.outputs)
-
-    return type(
-        f"Mock_{real.__name__}",
-        (Skill,),
-        {
-            "name": real.name,
-            "description": f"mock of {real.name}",
-            "kind": real.kind,
-            "inputs": real.inputs,
-            "outputs": real.outputs,
-            "outcomes": tuple(sorted(real.all_outcomes - {"success", "failure"})),
-            "success_outcomes": real.success_outcomes,
-            "Params": real.Params,
-            "run": run,
-            "__module__": __name__,
-        },
-    )
 
 
 # -- loading ------------------------------------------------------------------------------
@@ -253,9 +185,8 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
             at(("mocks", name), f"unknown skill {name!r}", did_you_mean(name, registry))
             continue
         real = registry.get(name)
-        calls = script if isinstance(script, list) else [script.always] if script.always else script.cycle or []
         base: tuple[str | int, ...] = ("mocks", name)
-        for index, call in enumerate(calls):
+        for index, call in enumerate(calls_of(script)):
             where = base + ((index,) if isinstance(script, list) else ("cycle", index) if script.cycle else ("always",))
             _check_call(real, call, where, at)
         if isinstance(script, Rule) and script.probability:
@@ -266,8 +197,8 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
                         f"skill {name!r} has no outcome {outcome!r}",
                         "declared: " + ", ".join(sorted(real.all_outcomes)),
                     )
-    if mission.exists():
-        _check_keys(spec, mission, registry, at)
+    facts = mission_facts(mission, registry) if mission.exists() else MissionFacts()
+    check_against_mission(spec, facts, registry, at)
     for index, call in enumerate(spec.expect.calls):
         if call.skill not in registry:
             at(("expect", "calls", index, "skill"), f"unknown skill {call.skill!r}", did_you_mean(call.skill, registry))
@@ -275,33 +206,7 @@ def load_scenario(path: str | Path, registry: Registry | None = None) -> Scenari
             for port in call.inputs:
                 if port not in registry.get(call.skill).inputs:
                     at(("expect", "calls", index, "inputs", port), f"skill {call.skill!r} has no input {port!r}")
-    for index, condition in enumerate(spec.expect.never):
-        try:
-            compile_expression(condition)
-        except ExpressionError as exc:
-            at(("expect", "never", index), str(exc))
     return Scenario(path, spec, _unique(problems), loaded)
-
-
-def _check_keys(spec: ScenarioSpec, mission: Path, registry: Registry, at: Any) -> None:
-    """Scenario keys must be keys the mission uses, of their declared types."""
-    from missions.check import check, check_write
-
-    checked = check(mission, registry)
-    if checked.mission is None:
-        return
-    known = checked.keys_used | set(checked.key_types) | {k.strip("/") for k in checked.mission.blackboard}
-    writes = [(("blackboard", key), key, value) for key, value in spec.blackboard.items()]
-    for index, event in enumerate(spec.events):
-        writes += [(("events", index, "set", key), key, value) for key, value in event.set.items()]
-    for where, key, value in writes:
-        rel, declared, problem = check_write(key, value, checked.key_types)
-        if rel is None:
-            at(where, problem)
-        elif rel not in known:
-            at(where, f"the mission never reads or writes {rel!r}", did_you_mean(rel, known))
-        elif problem:
-            at(where, f"{rel!r} is declared {type_name(declared)}: {problem}")
 
 
 def _check_call(real: type[Skill], call: Call, where: tuple[str | int, ...], at: Any) -> None:
@@ -349,7 +254,7 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
         return Result(scenario, False, [str(p) for p in scenario.problems])
     spec = scenario.spec
     base = registry or Registry.default()
-    mocked = Registry()
+    mocked, names = Registry(), []
     for name in base:
         real = base.get(name)
         if name in spec.mocks:
@@ -358,6 +263,8 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
             mocked.register(mock_of(real, Rule(always=Call())))
         else:
             mocked.register(real)
+            continue
+        names.append(name)
     never = [compile_expression(c) for c in spec.expect.never]
     pending = sorted(spec.events, key=lambda e: e.t)
 
@@ -372,8 +279,13 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
         for condition in never:
             try:
                 held = condition.test(engine.blackboard.get)
-            except (BlackboardError, EvaluationError):
+            except MissingKeyError:
                 continue  # a key not written yet: the condition cannot hold
+            except EvaluationError as exc:
+                raise StopRun(
+                    f"never-condition {condition.source!r} cannot be evaluated at t={now:g} s: "
+                    + str(exc).removeprefix(f"{condition.source!r}: ")
+                ) from None
             if held:
                 raise StopRun(f"never-condition {condition.source!r} held at t={now:g} s")
 
@@ -387,7 +299,7 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
             registry=mocked,
             blackboard=spec.blackboard,
             before_tick=before_tick,
-            observers=[recorder],
+            observers=[recorder, _ScenarioBlock(scenario.path, names)],
         )
     except MissionInvalid as exc:
         return Result(scenario, False, ["the mission is invalid:", *(str(p) for p in exc.problems)])
@@ -396,6 +308,19 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
     events = recorder.events
     failures = list(_judge(spec.expect, result.summary, result.blackboard, result.reason, events))
     return Result(scenario, not failures, failures, result.folder, events)
+
+
+class _ScenarioBlock:
+    """summary.json's `scenario` block: the file and the skills it mocked (what a replay of this
+    run must mock too)."""
+
+    name = "scenario"
+
+    def __init__(self, path: Path, mocked: list[str]) -> None:
+        self.block = {"file": str(path), "mocked": sorted(mocked)}
+
+    def finished(self, session: Any, result: Any) -> None:
+        result.summary["scenario"] = self.block
 
 
 def _judge(
@@ -503,81 +428,3 @@ def _excerpt(events: list[dict[str, Any]], index: int) -> str:
 def location(scenario: Scenario) -> Location:
     assert scenario.loaded.locations.root is not None
     return scenario.loaded.locations.root
-
-
-# -- record and replay ----------------------------------------------------------------------
-
-LONG_RUN_S = 1e6  # a call that was still running when the run ended keeps running in the replay
-
-
-def from_trace(trace: Path, output: Path, mission: Path | None = None) -> dict[str, Any]:
-    """A scenario replaying a recorded run: its mocks return the recorded skill outcomes, in the
-    recorded order and after the recorded durations; it expects the recorded outcome, state
-    sequence and number of calls per skill. ``summary.json`` beside the trace names the mission."""
-    summary_path = trace.parent / "summary.json"
-    summary = json.loads(summary_path.read_text(encoding="utf-8")) if summary_path.exists() else {}
-    if summary.get("outcome") == "stopped_by_test":
-        raise ValueError(
-            f"{trace} was stopped by a scenario's never-condition: "
-            "replay that scenario itself rather than a recording of it"
-        )
-    if mission is None:
-        if "mission_file" not in summary:
-            raise ValueError(f"no summary.json with the mission beside {trace}: name the mission with --mission")
-        mission = Path(summary["mission_file"])
-    calls: dict[str, list[dict[str, Any]]] = {}
-    running: dict[str, dict[str, Any]] = {}
-    events: list[dict[str, Any]] = []
-    with trace.open(encoding="utf-8") as lines:
-        for line in lines:
-            event = json.loads(line)
-            kind = event["ev"]
-            if kind == "skill_start":
-                call: dict[str, Any] = {"outcome": "success", "duration": LONG_RUN_S, "_t": event["t"]}
-                calls.setdefault(event["skill"], []).append(call)
-                running[event["node"]] = call
-            elif kind in ("skill_outcome", "skill_cancel") and event["node"] in running:
-                call = running.pop(event["node"])
-                if kind == "skill_outcome":
-                    call.update(outcome=event["outcome"], duration=round(event["t"] - call["_t"], 6))
-                    if event["reason"]:
-                        call["reason"] = event["reason"]
-                    if event["outputs"]:
-                        call["outputs"] = event["outputs"]
-            elif kind == "bb_write" and event["writer"] == "scenario":
-                events.append({"t": event["t"], "set": {event["key"]: event["new"]}})
-    for skill, script in calls.items():
-        compact: list[dict[str, Any]] = []
-        for call in script:
-            call.pop("_t")
-            if call["duration"] == 0:
-                del call["duration"]
-            if compact and {k: v for k, v in compact[-1].items() if k != "times"} == call:
-                compact[-1]["times"] = compact[-1].get("times", 1) + 1
-            else:
-                compact.append(call)
-        calls[skill] = compact
-    try:
-        relative = Path(os.path.relpath(mission.resolve(), output.resolve().parent))
-    except ValueError:  # another drive
-        relative = mission.resolve()
-    spec: dict[str, Any] = {"mission": relative.as_posix(), "description": f"replay of {trace}"}
-    if "seed" in summary:
-        spec["seed"] = summary["seed"]
-    if summary.get("until"):
-        spec["until"] = summary["until"]
-    if summary.get("blackboard_overrides"):
-        spec["blackboard"] = summary["blackboard_overrides"]
-    spec["mocks"] = calls
-    if events:
-        spec["events"] = events
-    expect: dict[str, Any] = {}
-    if "outcome" in summary:
-        expect["outcome"] = summary["outcome"]
-    expect["states"] = summary.get("states_visited", [])
-    expect["calls"] = [
-        {"skill": skill, "times": sum(c.get("times", 1) for c in script)} for skill, script in sorted(calls.items())
-    ]
-    spec["expect"] = expect
-    output.write_text(yaml.safe_dump(spec, sort_keys=False, width=100), encoding="utf-8")
-    return spec
