@@ -3,7 +3,7 @@
 Summary table, a timeline of states and skills (drawn as inline SVG, plus the table behind it),
 the transcript when anyone spoke, the photos taken (thumbnails, with their metadata and upload
 state) and the layouts the display showed, the map with the trajectory, and the pictures of the
-mission's machine or tree. Everything
+mission's machine or tree. The map marks where the robot bumped into walls and people. Everything
 is inline (no scripts, no external files), so the page opens anywhere, offline, and can be
 attached to a bug report.
 """
@@ -164,7 +164,8 @@ def timeline_svg(spans: list[Span], duration: float) -> str:
 
 
 def trajectory_map(folder: Path, checked: Checked) -> str:
-    """The map with the robot's true path, as an embedded PNG; empty for robot-less missions."""
+    """The map with the robot's true path and its bumps (crosses: black for walls, orange for
+    people), as an embedded PNG; empty for robot-less missions."""
     trajectory = folder / "trajectory.csv"
     mission = checked.mission
     if not trajectory.exists() or mission is None or mission.world is None:
@@ -195,6 +196,13 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     axes.plot(points[:, 1], points[:, 2], "-", color="#d9534f", linewidth=1.5, label="trajectory")
     axes.plot(points[0, 1], points[0, 2], "o", color="#5cb85c", label="start")
     axes.plot(points[-1, 1], points[-1, 2], "s", color="#d9534f", label="end")
+    bumps = read_bumps(folder / "bumps.csv")
+    for what, colour in (("wall", "#000000"), ("person", "#f0ad4e")):
+        spots = [(x, y) for _, x, y, kind in bumps if kind == what]
+        if spots:
+            xs, ys = zip(*spots, strict=True)
+            label = f"bump into {'a wall' if what == 'wall' else 'a person'} ({len(spots)})"
+            axes.plot(xs, ys, "X", color=colour, markeredgecolor="white", markersize=9, label=label)
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.legend(loc="upper right", fontsize=7)
@@ -204,7 +212,31 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     plt.close(figure)
     encoded = base64.b64encode(buffer.getvalue()).decode()
     image = f'<img class="map" alt="map with the trajectory" src="data:image/png;base64,{encoded}">'
-    return f'<h2 id="map">Map and trajectory</h2>\n{image}'
+    return f'<h2 id="map">Map and trajectory</h2>\n{image}\n{bumps_caption(bumps)}'
+
+
+def read_bumps(path: Path) -> list[tuple[float, float, float, str]]:
+    """The simulator's contact events (t, x, y, wall or person) from bumps.csv; none without it."""
+    if not path.is_file():
+        return []
+    rows = []
+    for line in path.read_text(encoding="utf-8").splitlines()[1:]:
+        t, x, y, what = line.split(",")
+        rows.append((float(t), float(x), float(y), what))
+    return rows
+
+
+def bumps_caption(bumps: list[tuple[float, float, float, str]]) -> str:
+    """What the crosses on the map are, and when each bump happened."""
+    if not bumps:
+        return '<p class="bumps">No bumps.</p>'
+    kinds = Counter(what for *_, what in bumps)
+    where = "; ".join(f"{t:g} s at ({x:.2f}, {y:.2f}), {what}" for t, x, y, what in bumps[:20])
+    more = f"; {len(bumps) - 20} more in bumps.csv" if len(bumps) > 20 else ""
+    return (
+        f'<p class="bumps">{len(bumps)} bump(s) marked ×: {kinds["wall"]} into walls, '
+        f"{kinds['person']} into people ({html.escape(where)}{more}).</p>"
+    )
 
 
 def transcript_section(folder: Path) -> str:

@@ -67,3 +67,20 @@ def test_report_opens_cleanly_with_timeline_and_pictures(tmp_path: Path, mission
         assert '<img class="map" alt="map with the trajectory" src="data:image/png;base64,' in dom
     if mission.endswith("hello.yaml"):
         assert "working/patrol" in dom and "check ×41" in dom
+
+
+def test_the_map_marks_each_bump_and_says_which_were_walls_and_which_people(tmp_path: Path) -> None:
+    from missions.check import check
+    from missions.report import trajectory_map
+
+    checked = check("missions/drive_demo.yaml")
+    (tmp_path / "trajectory.csv").write_text("t,x,y,theta\n0,6,1,-1.57\n1,6,1.5,-1.57\n2,7,1.9,0\n")
+    assert '<p class="bumps">No bumps.</p>' in trajectory_map(tmp_path, checked)
+    (tmp_path / "bumps.csv").write_text("t,x,y,what\n1.5,6.1,1.6,wall\n2.25,7,1.9,person\n3,7.2,1.9,wall\n")
+    section = trajectory_map(tmp_path, checked)
+    assert "3 bump(s) marked ×: 2 into walls, 1 into people" in section
+    assert "1.5 s at (6.10, 1.60), wall; 2.25 s at (7.00, 1.90), person" in section
+    with_bumps = re.search(r'src="data:image/png;base64,([^"]+)"', section)
+    (tmp_path / "bumps.csv").unlink()
+    without = re.search(r'src="data:image/png;base64,([^"]+)"', trajectory_map(tmp_path, checked))
+    assert with_bumps and without and with_bumps.group(1) != without.group(1)  # the crosses are drawn

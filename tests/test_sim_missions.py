@@ -16,7 +16,8 @@ def test_drive_demo_moves_the_simulated_chefbot(tmp_path: Path) -> None:
     assert result.outcome == "success"
     sim = result.summary["sim"]
     assert sim["bumps"] == 0 and sim["not_simulated"] == []
-    assert 5.0 < sim["distance_m"] < 6.0  # 0.9 + 3.0 m straight, plus the final arc
+    # 0.9 + 3.0 m straight, plus the final arc; the straight ends short of the wall it heads for
+    assert 4.5 < sim["distance_m"] < 6.0
     assert "trajectory.csv" in result.summary["artefacts"]
     lines = (tmp_path / "trajectory.csv").read_text().splitlines()
     assert lines[0] == "t,x,y,theta" and len(lines) == result.summary["ticks"] + 2
@@ -62,7 +63,7 @@ def test_motors_stop_when_the_run_is_interrupted(tmp_path: Path) -> None:
     assert float(final.split(",")[0]) == pytest.approx(2.0, abs=0.06)
 
 
-def test_a_move_into_a_wall_bumps_and_stops(tmp_path: Path) -> None:
+def test_a_move_towards_a_wall_stops_short_of_it(tmp_path: Path) -> None:
     path = mission(
         tmp_path,
         """\
@@ -74,8 +75,12 @@ def test_a_move_into_a_wall_bumps_and_stops(tmp_path: Path) -> None:
     """,
     )
     result = run(path, out=tmp_path / "run")
-    assert result.summary["sim"]["bumps"] > 0
+    assert result.outcome == "success"
+    assert result.summary["sim"]["bumps"] == 0  # the move checks its way on the map (tests/test_open_loop_motion.py)
     assert result.summary["sim"]["final_pose"][1] >= 0.2 - 0.05  # never through the south wall at y = 0
+    events = [json.loads(line) for line in (tmp_path / "run" / "trace.jsonl").read_text().splitlines()]
+    reasons = [e["reason"] for e in events if e["ev"] == "skill_outcome" and e["skill"] == "move"]
+    assert len(reasons) == 1 and reasons[0].startswith("stopped after") and "short of an obstacle" in reasons[0]
 
 
 @pytest.mark.parametrize(

@@ -224,3 +224,32 @@ def test_odometry_speed_is_right_however_often_it_is_read() -> None:
             odometry.read()  # the first read averages over the start and the acceleration: skip it
         elif k % 5 == 0 and k > 40:  # then read only every fifth tick
             assert odometry.read().twist.v == pytest.approx(0.3, abs=0.03)
+
+
+def test_a_bump_is_one_event_however_long_the_robot_pushes() -> None:
+    w = world(start=Pose2D(10.0, 2.0, 0.0), slip_std=0.0)
+    drive(w, 0.35, 0.0, 40.0)  # into the east wall, then on against it for many steps
+    body = w.body
+    assert body.bumps == 1 and body.wall_bumps == 1 and body.person_bumps == 0
+    assert body.contact_steps > 100  # the steps spent pushing are counted apart
+    assert [b.what for b in body.bump_log] == ["wall"]
+    first = body.bump_log[0]
+    assert first.x == pytest.approx(body.pose.x, abs=0.03) and first.y == pytest.approx(2.0)
+    assert 0 < first.t < 40.0
+    drive(w, 0.0, 0.0, 1.0)  # standing still against it: still the same contact
+    drive(w, 0.35, 0.0, 1.0)
+    assert body.bumps == 1
+    drive(w, -0.2, 0.0, 2.0)  # away from the wall, then into it again: a second bump
+    assert body.contact == ""
+    drive(w, 0.35, 0.0, 4.0)
+    assert body.bumps == 2 and len(body.bump_log) == 2 and body.bump_log[1].t > first.t
+
+
+def test_driving_into_a_person_is_a_bump_into_people() -> None:
+    w = world("peoplebot", "museum", start=Pose2D(11.0, 10.0, 0.0), slip_std=0.0)
+    w.movers = lambda: np.array([[12.5, 10.0]])  # someone standing 1.5 m ahead
+    drive(w, 0.3, 0.0, 10.0)
+    body = w.body
+    assert body.bumps == 1 and body.person_bumps == 1 and body.wall_bumps == 0
+    assert body.bump_log[0].what == "person"
+    assert body.pose.x < 12.5 - w.base.footprint_radius - w.mover_radius + 0.03

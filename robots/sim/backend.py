@@ -29,7 +29,7 @@ from robots.sim.devices import (
 from robots.sim.people import PERSON_RADIUS, Crowd
 from robots.sim.trajectory import Trajectory
 from robots.sim.voices import Voices
-from robots.sim.world import World
+from robots.sim.world import Bump, World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
 
@@ -61,6 +61,12 @@ def populated_world(
     crowd.robot = lambda: (world.body.pose.x, world.body.pose.y)
     crowd.robot_radius = profile.base.footprint_radius
     return world, crowd
+
+
+def write_bumps(bumps: list[Bump], path: Path) -> None:
+    """bumps.csv: one row per contact event (t, x, y, what), for the report's map."""
+    lines = ["t,x,y,what"] + [f"{b.t:.6g},{b.x:.6f},{b.y:.6f},{b.what}" for b in bumps]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 class SimBackend:
@@ -147,14 +153,22 @@ class SimBackend:
 
     def write_results(self, folder: Path) -> None:
         self.trajectory.write(folder / "trajectory.csv")
+        write_bumps(self.world.body.bump_log, folder / "bumps.csv")
 
     def summary(self) -> dict[str, Any]:
+        """The sim block of summary.json. ``bumps`` counts contact events (entering contact with
+        a wall or a person; pushing on is the same bump), split into ``bumps_walls`` and
+        ``bumps_people``; ``bump_ticks`` counts the steps spent in contact; bumps.csv says where."""
         distance = self.trajectory.distance()
-        final = self.world.body.pose
+        body = self.world.body
+        final = body.pose
         return {
             "distance_m": round(distance, 4),
             "final_pose": [round(final.x, 4), round(final.y, 4), round(final.theta, 4)],
-            "bumps": self.world.body.bumps,
+            "bumps": body.bumps,
+            "bumps_walls": body.wall_bumps,
+            "bumps_people": body.person_bumps,
+            "bump_ticks": body.contact_steps,
             "people": len(self.crowd.people),
             "utterances": len(self.voices.spoken) if self.voices is not None else 0,
             "battery_percent": round(self.world.battery_percent, 3),

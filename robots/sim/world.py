@@ -12,7 +12,11 @@ What it models, and why:
   In a bump the wheels stop with the body: they turned as far as it moved.
 - **Collisions**: the robot's footprint may not overlap an occupied or unknown cell; a move
   that would is cut short where it was still clear, the wheels stop and a bump is reported.
-  The robot never passes through a wall.
+  The robot never passes through a wall. A bump is a contact *event*: it begins with the first
+  step cut short and lasts, however long the robot pushes or creeps on, until it is
+  ``CONTACT_CLEAR`` from where it last touched; each
+  is logged with its time, place and what was hit (a wall, which includes anything on the map,
+  or a person). ``contact_steps`` counts the steps spent pushing.
 - **Watchdog**: with no velocity command for ``watchdog_s`` the robot stops, as a real base's
   firmware does.
 - **Battery** drains with the current drawn (idle plus a share of the drive current).
@@ -39,6 +43,7 @@ from robots.profile import Device, Profile
 RAY_STEP = 0.7  # in cells: under the half-diagonal (1/sqrt 2), so a thin diagonal wall is not stepped over
 RAY_CHUNK = 48  # steps a ray marches before the rays that hit drop out
 _RAY_PAD = math.ceil(RAY_CHUNK * RAY_STEP) + 2  # cells of "hit" around the map: a chunk never leaves the array
+CONTACT_CLEAR = 0.05  # m: a contact lasts until the robot is this far from where it last touched
 
 
 def close_corners(hits: np.ndarray) -> np.ndarray:
@@ -74,6 +79,16 @@ class WheelState:
     ticks: int = 0
 
 
+@dataclass(frozen=True)
+class Bump:
+    """One contact event: when it began, where the robot's centre was, and what it hit."""
+
+    t: float
+    x: float
+    y: float
+    what: str  # "wall" (anything on the map) or "person"
+
+
 @dataclass
 class Body:
     """The robot's true state in the world."""
@@ -81,11 +96,18 @@ class Body:
     pose: Pose2D
     left: WheelState = field(default_factory=WheelState)
     right: WheelState = field(default_factory=WheelState)
-    bumped: bool = False
-    bumps: int = 0
+    bumped: bool = False  # the last step was cut short
+    bumps: int = 0  # contact events: entering contact, not the steps spent pushing
     person_bumps: int = 0  # of the bumps, those into a person
+    contact_steps: int = 0  # steps cut short, pushing included
+    contact: str = ""  # what the robot touches now ("wall" or "person"); "" once it got away
+    bump_log: list[Bump] = field(default_factory=list)
     yaw_rate: float = 0.0  # true rad/s
     linear: float = 0.0  # true m/s
+
+    @property
+    def wall_bumps(self) -> int:
+        return self.bumps - self.person_bumps
 
 
 class World:
@@ -127,6 +149,7 @@ class World:
         # moving round obstacles (people): their centres as an (n, 2) array, and their radius
         self.movers: Callable[[], np.ndarray] | None = None
         self.mover_radius = 0.25
+        self._touched = start  # where the robot last touched something
 
     # -- commands -----------------------------------------------------------------------------
 
@@ -173,10 +196,11 @@ class World:
         if d_left or d_right:
             movers = self._movers_near(body.pose)
             pose, clear, into_person = self._clear_part(body.pose, pose, d_left, d_right, movers)
-            if not clear:
-                body.bumped = True
-                body.bumps += 1
-                body.person_bumps += into_person
+            if clear:
+                if body.contact and math.hypot(pose.x - self._touched.x, pose.y - self._touched.y) >= CONTACT_CLEAR:
+                    body.contact = ""  # it got away from what it touched
+            else:
+                self._touch(pose, "person" if into_person else "wall", dt)
                 body.left.speed = body.right.speed = 0.0
                 self._command = (0.0, 0.0)
         if body.bumped:
@@ -200,6 +224,18 @@ class World:
         current = battery.idle_current + battery.drive_current * min(load, 1.0)
         self.battery_charge_ah = max(0.0, self.battery_charge_ah - current * dt / 3600)
         self.time += dt
+
+    def _touch(self, pose: Pose2D, what: str, dt: float) -> None:
+        """A step cut short: a new bump when the robot was not touching this kind of thing yet."""
+        body = self.body
+        body.bumped = True
+        body.contact_steps += 1
+        self._touched = pose
+        if body.contact != what:
+            body.contact = what
+            body.bumps += 1
+            body.person_bumps += what == "person"
+            body.bump_log.append(Bump(round(self.time + dt, 6), pose.x, pose.y, what))
 
     def _icc(self, pose: Pose2D, d_left: float, d_right: float) -> Pose2D:
         """The book's ICC model: both wheels turn about one centre (or go straight)."""

@@ -4,6 +4,8 @@ One generator, shared by navigate, wander, approach and back_to_point: it yields
 and returns a ``NavResult`` whose outcome is one of ``succeeded``, ``unreachable``, ``blocked``,
 ``timeout`` or ``cancelled``, with a reason. What it does when the way is blocked:
 
+0. when the odometry shows no headway under a motion command, it touched something no sensor
+   showed: it stops at once, puts that spot on the obstacle layer and goes on as blocked;
 1. stop, and wait ``patience`` seconds: a person walking past moves on by themselves;
 2. stamp what the sensors see into the stack's obstacle layer and plan again around it;
 3. when no path is left, keep looking until ``blocked_timeout`` (people move, the layer
@@ -24,7 +26,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from robots.interfaces import Pose2D
-from skills.nav.controller import PathFollower
+from skills.nav.contact import ContactWatch, touched
+from skills.nav.controller import Command, PathFollower
 from skills.nav.planner import Unreachable
 from skills.nav.stack import NavStack
 
@@ -96,6 +99,8 @@ def drive_to(
     stuck_travelled = 0.0
     planned_at = start_time
     settling_since: float | None = None
+    # the last resort: stop at the first contact, not push (needs the wheels' odometry)
+    watch = ContactWatch.for_robot({"navigation": stack}, clock)
     try:
         while True:
             if cancel is not None and cancel():
@@ -111,8 +116,15 @@ def drive_to(
             last = pose
             obstacles = stack.obstacles()
             command = follower.command(pose, obstacles, stack.unmapped_distance(obstacles))
+            contact = watch.check() if watch is not None else None
+            if watch is not None and contact is not None and command.state != "arrived":
+                # it touched something no sensor showed: put it on the obstacle layer, then as blocked
+                stack.mark(pose, touched(watch.last_command, stack.robot_radius))
+                command = Command(0.0, 0.0, "blocked", contact)
             if command.state == "arrived":
                 drive.stop()
+                if watch is not None:
+                    watch.commanded(0.0, 0.0)
                 # there is where the robot came to rest: while it still rolls or turns, look again
                 # next tick (the follower corrects if it rolled out of the tolerance)
                 still = moved < SETTLED_MOVE and turned < SETTLED_TURN
@@ -128,6 +140,8 @@ def drive_to(
                 if stuck_since is not None and travelled - stuck_travelled >= 0.5:
                     stuck_since = None
                 drive.cmd_vel(command.v, command.w)
+                if watch is not None:
+                    watch.commanded(command.v, command.w)
                 if params.replan_every and now - planned_at >= params.replan_every:
                     try:
                         follower = PathFollower(stack.plan((pose.x, pose.y), (gx, gy)).points, heading, follower_params)
@@ -137,6 +151,8 @@ def drive_to(
                 yield
                 continue
             drive.stop()
+            if watch is not None:
+                watch.commanded(0.0, 0.0)
             if stuck_since is None:
                 stuck_since, stuck_travelled = now, travelled
             if blocked_since is None:

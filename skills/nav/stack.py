@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 from scipy.ndimage import binary_dilation
+from scipy.spatial import cKDTree
 
 from robots.clock import Clock
 from robots.gridmap import FREE, GridMap
@@ -35,11 +36,18 @@ from skills.nav.costmap import LETHAL, inflated_costs
 from skills.nav.planner import Plan, Planner
 
 _COSTS: dict[tuple[bytes, float, float], np.ndarray] = {}
+_BLOCKED: dict[bytes, cKDTree] = {}
+CLEARANCE_REACH = 3.0  # m: clearances farther than this are inf (nothing near enough to matter)
+HALF_DIAGONAL = math.sqrt(2) / 2  # in cells: what is in a cell may lie this far from its centre
+
+
+def _map_key(grid: GridMap) -> bytes:
+    return hashlib.sha1(grid.data.tobytes() + repr(grid.data.shape).encode()).digest()
 
 
 def static_costs(grid: GridMap, robot_radius: float) -> np.ndarray:
     """The inflated costmap of a map for a robot radius, computed once per process."""
-    key = (hashlib.sha1(grid.data.tobytes() + repr(grid.data.shape).encode()).digest(), grid.resolution, robot_radius)
+    key = (_map_key(grid), grid.resolution, robot_radius)
     costs = _COSTS.get(key)
     if costs is None:
         if len(_COSTS) > 8:
@@ -47,6 +55,18 @@ def static_costs(grid: GridMap, robot_radius: float) -> np.ndarray:
         costs = _COSTS[key] = inflated_costs(grid, robot_radius)
         costs.setflags(write=False)
     return costs
+
+
+def blocked_cells(grid: GridMap) -> cKDTree:
+    """The centres of the map's cells that are not free (obstacles, unknown space), in cell units
+    (row, col), for nearest-neighbour queries; built once per map."""
+    key = _map_key(grid)
+    tree = _BLOCKED.get(key)
+    if tree is None:
+        if len(_BLOCKED) > 8:
+            _BLOCKED.clear()
+        tree = _BLOCKED[key] = cKDTree(np.argwhere(grid.data != FREE) + 0.5)
+    return tree
 
 
 @dataclass(frozen=True)
@@ -60,6 +80,10 @@ def _to_base(points: np.ndarray, mount: tuple[float, float, float]) -> np.ndarra
     mx, my, mtheta = mount
     c, s = math.cos(mtheta), math.sin(mtheta)
     return np.column_stack((mx + c * points[:, 0] - s * points[:, 1], my + s * points[:, 0] + c * points[:, 1]))
+
+
+def _field_of_view(device: Any, default: float) -> float:
+    return float(getattr(device, "field_of_view", None) or default)
 
 
 def sonar_points(reading: SonarReading, rays: int = 5) -> np.ndarray:
@@ -85,6 +109,9 @@ class NavStack:
         sonar_mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
         obstacle_memory: float = 8.0,
         recent_s: float = 2.0,
+        odometry: Any = None,
+        laser_fov: float = math.pi,
+        sonar_fov: float = 0.26,
     ) -> None:
         self.grid = grid
         self.places: Mapping[str, tuple[float, float, float]] = grid.places
@@ -92,8 +119,11 @@ class NavStack:
         self.clock = clock
         self.limits = limits
         self._pose = pose
+        self.odometry = odometry  # the wheels' own account, for telling contact (skills/nav/contact.py)
         self.laser, self.laser_mount = laser, laser_mount
         self.sonar, self.sonar_mount = sonar, sonar_mount
+        # where the range sensors look: (mount heading, field of view), base frame
+        self.views = [(m[2], f) for d, m, f in ((laser, laser_mount, laser_fov), (sonar, sonar_mount, sonar_fov)) if d]
         self.obstacle_memory = obstacle_memory
         self.static = static_costs(grid, robot_radius)
         self.planner = Planner(grid, self.static)
@@ -124,6 +154,9 @@ class NavStack:
             laser_mount=interfaces["laser"].pose if "laser" in interfaces else (0.0, 0.0, 0.0),
             sonar=devices.get("sonar"),
             sonar_mount=interfaces["sonar"].pose if "sonar" in interfaces else (0.0, 0.0, 0.0),
+            odometry=devices.get("odometry"),
+            laser_fov=_field_of_view(interfaces.get("laser"), math.pi),
+            sonar_fov=_field_of_view(interfaces.get("sonar"), 0.26),
         )
 
     # -- where the robot is, what it sees ---------------------------------------------------
@@ -181,6 +214,74 @@ class NavStack:
         shape = self._near_mapped.shape
         on_map = self._near_mapped[np.clip(rows, 0, shape[0] - 1), np.clip(cols, 0, shape[1] - 1)]
         return float(distance[keep][~on_map].min()) if (~on_map).any() else math.inf
+
+    def map_clearance(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """Metres from each world point to the nearest cell the robot's map has as an obstacle or
+        unknown (off the map is 0), or its obstacle layer holds: to the cell's nearest corner at
+        worst, as the thing in it may be anywhere in it. Inf beyond ``CLEARANCE_REACH``."""
+        xs, ys = np.asarray(xs, dtype=float), np.asarray(ys, dtype=float)
+        rows, cols = self.grid.cells(xs, ys)
+        shape = self.grid.data.shape
+        inside = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
+        clearance = np.zeros(xs.shape)
+        if not inside.any():
+            return clearance
+        # in cell units, so that the map's origin and yaw are the grid's concern
+        at = np.column_stack(self._fractional_cells(xs[inside], ys[inside]))
+        resolution = self.grid.resolution
+        reach = CLEARANCE_REACH / resolution
+        distance, _ = blocked_cells(self.grid).query(at, distance_upper_bound=reach)
+        r0, c0 = max(int(rows[inside].min() - reach), 0), max(int(cols[inside].min() - reach), 0)
+        r1, c1 = int(rows[inside].max() + reach) + 1, int(cols[inside].max() + reach) + 1
+        seen_rows, seen_cols = np.nonzero(self.seen()[r0:r1, c0:c1])
+        if len(seen_rows):
+            centres = np.column_stack((seen_rows + r0 + 0.5, seen_cols + c0 + 0.5))
+            gaps = np.hypot(at[:, None, 0] - centres[None, :, 0], at[:, None, 1] - centres[None, :, 1])
+            distance = np.minimum(distance, gaps.min(axis=1))
+        clearance[inside] = np.maximum(distance - HALF_DIAGONAL, 0.0) * resolution
+        return clearance
+
+    def _fractional_cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) of world points in cell units, unrounded (a cell's centre is at +0.5)."""
+        ox, oy, yaw = self.grid.origin
+        dx, dy = xs - ox, ys - oy
+        if yaw:
+            c, s = math.cos(-yaw), math.sin(-yaw)
+            dx, dy = c * dx - s * dy, s * dx + c * dy
+        return dy / self.grid.resolution, dx / self.grid.resolution
+
+    def sees(self, direction: float) -> bool:
+        """Whether a range sensor looks that way (rad, base frame): behind a robot whose sensors
+        all look ahead, what they saw near it of late is all it knows."""
+        return any(abs(math.remainder(direction - heading, math.tau)) <= fov / 2 for heading, fov in self.views)
+
+    def remembered(self) -> np.ndarray:
+        """What the sensors saw near the robot in the last ``recent_s`` seconds, as world points,
+        without reading them again."""
+        now = self.clock.now()
+        points = [p for t, p in self._recent if t >= now - self.recent_s]
+        return np.concatenate(points) if points else np.empty((0, 2))
+
+    def sensed_clearance(self, xs: np.ndarray, ys: np.ndarray, fresh: bool = True) -> np.ndarray:
+        """Metres from each world point to the nearest thing the range sensors see now (or saw
+        close by of late) that the map does not have: people, a bag, a door left open. With
+        ``fresh`` false only what they saw of late counts (they do not look that way)."""
+        xs, ys = np.asarray(xs, dtype=float), np.asarray(ys, dtype=float)
+        if fresh:
+            pose, points = self.pose(), self.obstacles()
+            c, s = math.cos(pose.theta), math.sin(pose.theta)
+            world = np.column_stack(
+                (pose.x + c * points[:, 0] - s * points[:, 1], pose.y + s * points[:, 0] + c * points[:, 1])
+            )
+        else:
+            world = self.remembered()
+        if len(world):
+            rows, cols = self.grid.cells(world[:, 0], world[:, 1])
+            shape = self._near_mapped.shape
+            world = world[~self._near_mapped[np.clip(rows, 0, shape[0] - 1), np.clip(cols, 0, shape[1] - 1)]]
+        if not len(world):
+            return np.full(xs.shape, np.inf)
+        return np.hypot(xs[:, None] - world[None, :, 0], ys[:, None] - world[None, :, 1]).min(axis=1)
 
     def follower_params(self, tolerance: float, heading_tolerance: float, max_speed: float | None) -> FollowerParams:
         limits = self.limits
