@@ -1,16 +1,28 @@
-"""Test helpers for the Launchpad: the board's end of a real pty, written and read byte by byte."""
+"""Test helpers for the Launchpad: the board's end of a real pty, written and read byte by byte,
+and waits on what the driver has handled.
+
+Nothing here waits for a length of time: every wait is for a condition or an event, with a
+generous deadline that is only a failsafe (a test that hits it has failed, however slow the
+machine is).
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
 import select
+import threading
 import time
 import tty
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+from robots.drivers.launchpad_protocol import Message
 from robots.profile import Profile, load_profile, profile_path
+
+FAILSAFE_S = 30.0  # the longest any wait may take before the test fails
 
 
 def chefbot() -> Profile:
@@ -71,7 +83,7 @@ class Board:
             self.received += chunk
         return self.received
 
-    def wait_for(self, predicate: Callable[[bytes], bool], timeout: float = 5.0) -> bool:
+    def wait_for(self, predicate: Callable[[bytes], bool], timeout: float = FAILSAFE_S) -> bool:
         """Bounded wait until what the driver sent satisfies ``predicate``."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -85,7 +97,8 @@ class Board:
             self.unplug()
 
 
-def wait_until(condition: Callable[[], bool], timeout: float = 5.0) -> bool:
+def wait_until(condition: Callable[[], bool], timeout: float = FAILSAFE_S) -> bool:
+    """Poll ``condition`` (state that no event announces, like the simulated wheels) until it holds."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if condition():
@@ -102,3 +115,46 @@ def commands(data: bytes) -> list[tuple[int, int]]:
         if len(fields) == 3 and fields[0] == b"s":
             found.append((int(fields[1]), int(fields[2])))
     return found
+
+
+class Delivered:
+    """Stands between a link and its listener and counts the messages handed over, by kind.
+
+    The decoder counts a line as soon as it parses it, before the listener has handled it; a
+    test that wants to read what the driver made of a line waits here instead, on an event.
+    """
+
+    def __init__(self, link: Any) -> None:
+        self.link = link
+        self.listener = link.listener
+        self.counts: Counter[str] = Counter()
+        self._changed = threading.Condition()
+        link.listener = self
+
+    def on_message(self, message: Message, received: float) -> None:
+        self.listener.on_message(message, received)
+        self._count(type(message).__name__)
+
+    def on_connect(self) -> None:
+        self.listener.on_connect()
+        self._count("connect")
+
+    def on_disconnect(self) -> None:
+        self.listener.on_disconnect()
+        self._count("disconnect")
+
+    def _count(self, kind: str) -> None:
+        with self._changed:
+            self.counts[kind] += 1
+            self._changed.notify_all()
+
+    def reached(self, kind: str, count: int, timeout: float = FAILSAFE_S) -> bool:
+        """Wait until ``count`` messages of ``kind`` (a message class name) have been handled."""
+        with self._changed:
+            return self._changed.wait_for(lambda: self.counts[kind] >= count, timeout)
+
+    def more(self, kind: str, count: int = 1, timeout: float = FAILSAFE_S) -> bool:
+        """Wait until ``count`` more messages of ``kind`` than now have been handled."""
+        with self._changed:
+            target = self.counts[kind] + count
+        return self.reached(kind, target, timeout)

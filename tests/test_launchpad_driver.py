@@ -1,12 +1,16 @@
 """The Launchpad driver and its controller chain on a real pseudo-terminal (the test plays the board),
-and the chain alone with an injectable clock."""
+and the chain alone with an injectable clock.
+
+Nothing waits for a length of time or counts lines in a time window: a test waits for the
+driver to have handled what it sent (an event), or for a state no event announces (polled),
+with deadlines that are failsafes only. The watchdog runs on an injected clock.
+"""
 
 from __future__ import annotations
 
 import logging
 import math
 import random
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -18,7 +22,7 @@ from robots.drivers.launchpad import RateLimitedLog
 from robots.drivers.launchpad_protocol import BatteryVolts, BoardTime, Encoders, Quaternion
 from robots.drivers.wheel_control import wheel_targets
 from robots.interfaces import Battery, Drive, Imu, Odometry, Pose2D, Sonar, check_interfaces
-from tests.launchpad_helpers import Board, chefbot, commands, wait_until
+from tests.launchpad_helpers import FAILSAFE_S, Board, Delivered, chefbot, commands, wait_until
 from tests.test_launchpad_protocol import VALID, mutate
 
 PROFILE = chefbot()
@@ -36,9 +40,15 @@ def board(tmp_path: Path) -> Iterator[Board]:
 @pytest.fixture
 def robot(board: Board) -> Iterator[ChefbotBase]:
     base = open_chefbot(board.path, PROFILE, SimClock(10), START, backoff=(0.02, 0.2), silence_s=60)
-    assert base.link.wait_connected(5)
+    assert base.link.wait_connected(FAILSAFE_S)
     yield base
     base.close()
+
+
+@pytest.fixture
+def handled(robot: ChefbotBase) -> Delivered:
+    """What the chain has handled of what the board sent (the board sends nothing unasked)."""
+    return Delivered(robot.link)
 
 
 def lines(*items: bytes) -> bytes:
@@ -51,7 +61,7 @@ def greet(board: Board, left: int = 0, right: int = 0, micros: int = 1_000_000) 
 
 def test_readings_reach_the_robot_interfaces(board: Board, robot: ChefbotBase) -> None:
     greet(board)
-    assert robot.wait_ready(5)
+    assert robot.wait_ready(FAILSAFE_S)
     assert check_interfaces(robot.devices) == []
     devices = robot.devices
     assert isinstance(devices["drive"], Drive) and isinstance(devices["odometry"], Odometry)
@@ -75,40 +85,41 @@ def test_readings_reach_the_robot_interfaces(board: Board, robot: ChefbotBase) -
     assert robot.link.stats()["lines_bad"] == {}
 
 
-def test_encoder_counters_wrap_around_without_a_jump(board: Board, robot: ChefbotBase) -> None:
+def test_encoder_counters_wrap_around_without_a_jump(board: Board, robot: ChefbotBase, handled: Delivered) -> None:
     top = 2**31 - 1
     start = top - 1000
     greet(board, start, start)
-    assert robot.wait_ready(5)
+    assert robot.wait_ready(FAILSAFE_S)
     for k in range(1, 21):  # 20 steps of 100 ticks: across 2**31 - 1 -> -2**31
         count = (start + 100 * k + 2**31) % 2**32 - 2**31
         board.send(lines(b"t\t%d\t0.02" % (1_000_000 + 20_000 * k), b"e\t%d\t%d" % (count, count)))
-    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] == 21)
+    assert handled.reached("Encoders", 21)
     assert count < 0  # it did wrap
     assert robot.odometry.distance == pytest.approx(2000 / PER_METRE)
     assert robot.counters["board_resets"] == 0 and robot.counters["encoder_jumps"] == 0
 
 
 def test_a_board_reset_is_counted_and_the_pose_continues(
-    board: Board, robot: ChefbotBase, caplog: pytest.LogCaptureFixture
+    board: Board, robot: ChefbotBase, handled: Delivered, caplog: pytest.LogCaptureFixture
 ) -> None:
     greet(board, 5000, 5000, micros=50_000_000)
-    assert robot.wait_ready(5)
+    assert robot.wait_ready(FAILSAFE_S)
     board.send(lines(b"t\t50020000\t0.02", b"e\t5100\t5100"))
-    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] == 2)
+    assert handled.reached("Encoders", 2)
     before = robot.odometry.pose
     caplog.set_level(logging.WARNING)
     # the board rebooted: its clock and its counters start again from zero
     board.send(b"Reset Done\r\n" + lines(b"t\t1200\t0.00", b"e\t0\t0", b"i\t0\t0\t0\t1"))
     board.send(lines(b"t\t21200\t0.02", b"e\t100\t100"))
-    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] == 4)
+    assert handled.reached("Encoders", 4)
     assert robot.counters["board_resets"] == 1
     after = robot.odometry.pose
     assert after.x - before.x == pytest.approx(100 / PER_METRE * math.cos(START.theta), abs=1e-6)  # no jump
     assert robot.read_imu().yaw == pytest.approx(START.theta)  # the IMU's new zero is re-aligned
     # without its clock line, a counter jump the wheels cannot make is a reset too
     board.send(lines(b"e\t-90000\t7"))
-    assert wait_until(lambda: robot.counters["encoder_jumps"] == 1)
+    assert handled.reached("Encoders", 5)
+    assert robot.counters["encoder_jumps"] == 1
     assert robot.counters["board_resets"] == 2
     assert any("Launchpad reset" in record.message for record in caplog.records)
 
@@ -133,7 +144,8 @@ def test_warnings_are_rate_limited() -> None:
 
 def test_fuzz_megabytes_through_the_pty(board: Board, robot: ChefbotBase) -> None:
     """Random bytes and mutated lines around valid ones (2 MB), through the real pty: the reader
-    keeps going, and every valid line among them (one that starts a line) is parsed."""
+    keeps going, and every valid line among them (one that starts a line) is parsed. A last
+    line no other can be tells when the driver has handled all of it."""
     rng = random.Random(3)
     chunks, valid, size = [b"\n"], 0, 0
     while size < 2_000_000:
@@ -148,45 +160,53 @@ def test_fuzz_megabytes_through_the_pty(board: Board, robot: ChefbotBase) -> Non
         chunks.append(piece)
         size += len(piece)
     stream = b"".join(chunks)
-    board.send(stream)
-    assert wait_until(lambda: robot.link.decoder.bytes >= len(stream), timeout=30)
-    parsed = robot.link.decoder.lines_ok
+    last = b"\nb\t99.25\n"  # a battery no valid line reports; the newline ends whatever came before
+    assert b"99.25" not in stream
+    board.send(stream + last)
+    assert wait_until(lambda: robot.volts == 99.25)
+    parsed = robot.link.decoder.lines_ok - 1
     assert valid <= parsed <= valid * 1.3, (valid, parsed)
     assert robot.link.counters["listener_errors"] == 0
     assert robot.link.connected and robot.link._thread is not None and robot.link._thread.is_alive()
 
 
-def test_unplug_and_replug_reconnects_and_sends_zero_first(board: Board, robot: ChefbotBase) -> None:
+def test_unplug_and_replug_reconnects_and_sends_zero_first(
+    board: Board, robot: ChefbotBase, handled: Delivered
+) -> None:
     greet(board)
-    assert robot.wait_ready(5)
+    assert robot.wait_ready(FAILSAFE_S)
     robot.cmd_vel(0.2, 0.0)
     assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
     board.unplug()
-    assert wait_until(lambda: not robot.link.connected)
-    assert robot.link.counters["disconnects"] == 1
-    time.sleep(0.3)  # a few failed attempts while the path is gone
+    assert handled.reached("disconnect", 1)
+    assert not robot.link.connected and robot.link.counters["disconnects"] == 1
+    # a few failed attempts while the path is gone
+    assert wait_until(lambda: robot.link.counters["open_failures"] >= 2)
+    reconnected = handled.counts["connect"] + 1  # the first connection may have been counted or not
     board.plug()
-    assert wait_until(lambda: robot.link.connected, timeout=5)
-    assert robot.link.counters["connects"] == 2 and robot.link.counters["open_failures"] >= 1
+    assert handled.reached("connect", reconnected)
+    assert robot.link.counters["connects"] == 2
     assert board.wait_for(lambda data: len(commands(data)) >= 1)
     assert commands(board.read())[0] == (0, 0)  # the board kept the old speed: zero comes first
     greet(board, 777, 777)  # new counters are a new reference, not a step
-    assert wait_until(lambda: robot.link.decoder.ok["Encoders"] >= 2)
-    assert robot.counters["encoder_jumps"] == 0
+    greet(board, 800, 800, micros=1_020_000)
+    assert handled.reached("Encoders", 3)
+    assert robot.counters["encoder_jumps"] == 0 and robot.counters["board_resets"] == 0
+    assert robot.odometry.distance == pytest.approx(23 / PER_METRE)  # 777 -> 800, and not 0 -> 777
 
 
 def test_a_silent_port_is_reopened(board: Board) -> None:
     robot = open_chefbot(board.path, PROFILE, SimClock(10), START, silence_s=0.3)
     try:
         assert wait_until(lambda: robot.link.counters["connects"] >= 2)
-        assert robot.link.counters["silences"] >= 1
+        assert robot.link.counters["silences"] >= 1 and robot.link.counters["disconnects"] >= 1
     finally:
         robot.close()
 
 
 def test_zero_speed_on_shutdown(board: Board) -> None:
     robot = open_chefbot(board.path, PROFILE, SimClock(10), START)
-    assert robot.link.wait_connected(5)
+    assert robot.link.wait_connected(FAILSAFE_S)
     robot.cmd_vel(0.3, 0.5)
     assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
     robot.close()
@@ -194,15 +214,39 @@ def test_zero_speed_on_shutdown(board: Board) -> None:
     robot.close()  # twice is harmless
 
 
-def test_the_watchdog_stops_after_half_a_second_over_the_pty(board: Board, robot: ChefbotBase) -> None:
-    greet(board)
-    assert robot.wait_ready(5)
-    robot.cmd_vel(0.2, 0.0)
-    commanded = time.monotonic()
-    assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
-    assert board.wait_for(lambda data: commands(data)[-1] == (0, 0), timeout=5)
-    assert time.monotonic() - commanded >= 0.45  # not before its time (a lower bound only)
-    assert robot.counters["watchdog_stops"] == 1
+def test_the_watchdog_stops_after_half_a_second_over_the_pty(board: Board) -> None:
+    """The watchdog's own thread, on an injected clock: it stops the motors at 0.5 s, not before."""
+    now = [100.0]
+    robot = open_chefbot(board.path, PROFILE, SimClock(10), START, monotonic=lambda: now[0])
+    checks = [0]
+    check = robot.check_watchdog
+
+    def counted() -> bool:
+        try:
+            return check()
+        finally:
+            checks[0] += 1
+
+    robot.check_watchdog = counted  # type: ignore[method-assign]  # what the watchdog thread calls
+
+    def checked_again() -> bool:
+        """True once the watchdog thread has looked twice more (so at least once since now)."""
+        seen = checks[0]
+        return wait_until(lambda: checks[0] >= seen + 2)
+
+    try:
+        assert robot.link.wait_connected(FAILSAFE_S)
+        robot.cmd_vel(0.2, 0.0)
+        assert board.wait_for(lambda data: any(c != (0, 0) for c in commands(data)))
+        now[0] += 0.45
+        assert checked_again()
+        assert commands(board.read())[-1] != (0, 0) and robot.counters["watchdog_stops"] == 0  # not before its time
+        now[0] += 0.1
+        assert checked_again()
+        assert robot.counters["watchdog_stops"] == 1
+        assert board.wait_for(lambda data: commands(data)[-1] == (0, 0))
+    finally:
+        robot.close()
 
 
 class FakeLink:

@@ -202,9 +202,13 @@ def bench_latency(commands: int, streaming: bool) -> dict[str, Any]:
     rng = random.Random(5)
     latencies: list[float] = []
     calls: list[float] = []  # the driver's own part: cmd_vel until its write returned
+    lock_waits: list[float] = []  # how long cmd_vel would wait for the chain the reader thread holds
     for n in range(commands):
         pty.drain()
         turn = n % 2 == 0
+        before = time.perf_counter()
+        with base._lock:
+            lock_waits.append((time.perf_counter() - before) * 1000)
         start = time.perf_counter()
         base.cmd_vel(0.1, 0.5) if turn else base.cmd_vel(0.2, 0.0)
         calls.append((time.perf_counter() - start) * 1000)
@@ -235,6 +239,8 @@ def bench_latency(commands: int, streaming: bool) -> dict[str, Any]:
         "max_ms": round(max(latencies), 3),
         "driver_call_p50_ms": round(statistics.median(calls), 3),
         "driver_call_p99_ms": round(percentile(calls, 99), 3),
+        "lock_wait_p99_ms": round(percentile(lock_waits, 99), 4),
+        "lock_wait_max_ms": round(max(lock_waits), 4),
         "target_p99_ms": TARGET_P99_MS,
         "meets_target": p99 <= TARGET_P99_MS,
     }

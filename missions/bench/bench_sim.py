@@ -2,8 +2,9 @@
 
 The PeopleBot in the museum with 20 people, stepped at 10 Hz: the world (kinematics, collisions,
 encoders, battery, IMU), the crowd, a full SICK laser scan (181 beams, 8 m) and a read of the
-people tracker every tick, with the robot driving in circles. Not yet included: camera
-rendering and audio (they arrive with the perception issue), so this is an upper bound until then.
+people tracker every tick, with the robot driving in circles. Not included: camera
+rendering and audio, so this is an upper bound for a robot that reads its camera every tick; a second
+row measures the camera's rendering alone (milliseconds per 640x480 frame).
 
 Run with ``botstage bench sim``.
 """
@@ -59,13 +60,44 @@ def bench_museum(sim_seconds: float, repeats: int) -> dict[str, Any]:
     }
 
 
+def bench_camera(frames: int) -> dict[str, Any]:
+    """The PeopleBot's camera (640x480, as its profile says) rendered while it drives among 20 people:
+    milliseconds per frame, one render a tick, against the tick's budget at 10 Hz."""
+    profile, problems, _ = load_profile(MAPS_DIR.parent / "profiles" / "peoplebot.yaml")
+    assert profile is not None, problems
+    grid = load(MAPS_DIR / "museum.yaml")
+    clock = SimClock(10)
+    backend = SimBackend(profile, grid, Pose2D(*grid.places["hall_centre"]), 1, clock, people=20)
+    camera, drive = backend.devices["camera"], backend.devices["drive"]
+    times: list[float] = []
+    for _ in range(frames):
+        drive.cmd_vel(0.3, 0.3)
+        backend.step()
+        clock.next_tick()
+        start = time.perf_counter()
+        frame = camera.frame()
+        times.append((time.perf_counter() - start) * 1000)
+    times.sort()
+    return {
+        "bench": "sim_camera_frame",
+        "robot": "peoplebot",
+        "people": 20,
+        "resolution": f"{frame.shape[1]}x{frame.shape[0]}",
+        "frames": frames,
+        "median_ms": round(times[len(times) // 2], 2),
+        "p90_ms": round(times[int(len(times) * 0.9)], 2),
+        "max_ms": round(times[-1], 2),
+        "tick_budget_ms": 100.0,
+    }
+
+
 def missed(results: list[dict[str, Any]]) -> list[str]:
     """The benches slower than their target (sim seconds per wall second)."""
-    return [r["bench"] for r in results if r["speedup_vs_realtime"] < r["target"]]
+    return [r["bench"] for r in results if "target" in r and r["speedup_vs_realtime"] < r["target"]]
 
 
 def main(quick: bool = False) -> list[dict[str, Any]]:
-    results = [bench_museum(60.0 if quick else 600.0, 2 if quick else 3)]
+    results = [bench_museum(60.0 if quick else 600.0, 2 if quick else 3), bench_camera(100 if quick else 600)]
     for result in results:
         print(json.dumps(result), flush=True)
     return results
