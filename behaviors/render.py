@@ -23,8 +23,8 @@ from behaviors.kinds.leaves import describe_skill
 from behaviors.machine import MachineBehaviour, MachinePlan
 from behaviors.skill_behaviour import SkillBehaviour
 
-TREE_FORMATS = ("ascii", "unicode", "dot", "svg", "png", "mermaid", "json")
-MACHINE_FORMATS = ("ascii", "dot", "svg", "png", "mermaid")
+FORMATS = ("ascii", "unicode", "dot", "svg", "png", "mermaid", "json")
+TREE_FORMATS = MACHINE_FORMATS = FORMATS  # trees and machines are drawn in every format alike
 COLOURS = {
     "UNTESTED": "#eeeeee,stroke-dasharray:4 3,color:#999999",
     "RUNNING": "#f0ad4e",
@@ -77,7 +77,9 @@ class Item:
     """One thing in a picture: a tree node, a machine, a state, or an outcome."""
 
     path: str
-    kind: str  # skill, condition, sequence, selector, parallel, decorator, machine, state, outcome
+    # skill, condition, sequence, selector, parallel, decorator, machine, state, outcome; or group:
+    # several pictures side by side (the machines of a mission), drawn with no node of its own
+    kind: str
     title: str
     details: list[str] = field(default_factory=list)
     children: list[Item] = field(default_factory=list)
@@ -143,6 +145,19 @@ def _fill_level(item: Item, plan: MachinePlan, level: Any, machine_path: str) ->
         item.children.append(state)
     for outcome in level.outcomes:
         item.children.append(Item(f"{machine_path}/{level.full(outcome)}", "outcome", outcome))
+
+
+def machines_in(item: Item) -> list[Item]:
+    """The outermost machines in a picture, wherever they sit (a tree's node, a parallel's
+    child); a machine inside another's state is part of that one's picture."""
+    if item.kind == "machine":
+        return [item]
+    return [machine for child in item.children for machine in machines_in(child)]
+
+
+def group(title: str, items: list[Item]) -> Item:
+    """Several pictures as one: a heading in text, side by side in dot and mermaid."""
+    return Item("", "group", title, children=items)
 
 
 # -- text -------------------------------------------------------------------------------------
@@ -255,6 +270,10 @@ def to_dot(item: Item, statuses: Statuses | None = None) -> str:
         """Emit ``it``; returns the id of a node edges can attach to."""
         if it.kind in ("machine", "state"):
             return cluster(it, indent)
+        if it.kind == "group":
+            for child in it.children:
+                node(child, indent)
+            return ""
         label = "\n".join([it.title, *it.details])
         shape = _SHAPES.get(it.kind, "box")
         lines.append(
@@ -370,6 +389,10 @@ def to_mermaid(item: Item, statuses: Statuses | None = None) -> str:
         return ids(path, "#anchor") if path in states else ids(path)
 
     def node(it: Item, indent: str) -> str:
+        if it.kind == "group":
+            for child in it.children:
+                node(child, indent)
+            return ""
         if it.kind in ("machine", "state"):
             anchor = ids(it.path, "#anchor")
             label = text("<br/>".join([it.title, *it.details]))
@@ -428,6 +451,8 @@ def to_json(item: Item, statuses: Statuses | None = None) -> str:
             out["transitions"] = [{"outcome": o, "to": t, **({"if": g} if g else {})} for o, t, g in it.transitions]
         if it.initial:
             out["initial"] = it.initial
+        if it.preemptions:
+            out["preemptions"] = [{"when": c, "to": t} for c, t in it.preemptions]
         if it.children:
             out["children"] = [plain(c) for c in it.children]
         return out

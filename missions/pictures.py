@@ -3,19 +3,13 @@ recorded trace or by what coverage says no test reached: `botstage tree` and `bo
 
 from __future__ import annotations
 
+import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
-from behaviors.render import (
-    MACHINE_FORMATS,
-    TREE_FORMATS,
-    GraphvizMissing,
-    Statuses,
-    render,
-    statuses_at,
-)
+from behaviors.render import FORMATS, GraphvizMissing, Item, Statuses, group, machines_in, render, statuses_at
 from behaviors.trace import read_jsonl
-from missions.check import check, describe_part, root_spec_path
+from missions.check import Checked, check, describe_part
 from missions.coverage import untested_of
 from missions.loader import Problem
 
@@ -45,46 +39,61 @@ def picture(
 ) -> bytes:
     """Draw what the mission runs (or its machine, or a named tree) in `fmt`.
 
+    `machine` draws every machine the mission runs, wherever it sits (the root, a tree's node, a
+    parallel's child); a mission that runs none gets its named machines, else the tree it runs.
     `trace` colours nodes by their status at tick `at` (default: the last); `coverage` marks what
     no test reached. `note` hears what is drawn instead of what was asked (a machine the mission
     lacks), before any error, so that a caller can show it first.
     """
-    known = MACHINE_FORMATS if machine else TREE_FORMATS
-    if fmt not in known:
-        raise PictureError(f"unknown format {fmt!r}; use one of {', '.join(known)}")
+    if fmt not in FORMATS:
+        raise PictureError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
     checked = check(mission)
     if not checked.ok:
         raise InvalidMission(list(checked.problems))
     spec = checked.mission
     assert spec is not None
-    if machine and spec.machine is None:
-        note(f"note: {mission} has no machine; drawing the tree it runs")
-        spec_path: tuple[str, ...] = root_spec_path(spec)  # type: ignore[assignment]
-    elif machine:
-        spec_path = ("machine",)
-    elif tree is not None:
-        if tree not in spec.trees:
-            names = ", ".join(spec.trees) or "none"
-            raise PictureError(f"{mission} has no tree {tree!r} (trees: {names})")
-        spec_path = ("trees", tree)
-    else:
-        spec_path = root_spec_path(spec)  # type: ignore[assignment]
+    if tree is not None and tree not in spec.trees:
+        names = ", ".join(spec.trees) or "none"
+        raise PictureError(f"{mission} has no tree {tree!r} (trees: {names})")
+    item = describe_part(checked, ("trees", tree) if tree is not None else None)
+    if machine:
+        item = machine_picture(checked, item, mission, note)
     statuses = None
     if trace is not None:
         try:
             events = read_jsonl(trace)
+            last = events[-1]["tick"] if events else 0
+            statuses = statuses_at(events, last if at is None else at)
         except (OSError, ValueError) as exc:
             raise PictureError(f"cannot read trace {trace}: {exc}") from None
-        last = events[-1]["tick"] if events else 0
-        statuses = statuses_at(events, last if at is None else at)
+        except (KeyError, TypeError, AttributeError):
+            raise PictureError(f"cannot read trace {trace}: not a botstage trace (events of a run)") from None
     if coverage is not None:
         try:
             untested, untested_transitions = untested_of(coverage, mission)
         except (OSError, ValueError, KeyError) as exc:
             raise PictureError(f"cannot use coverage {coverage}: {str(exc).strip(chr(34))}") from None
+        except (TypeError, AttributeError):
+            raise PictureError(f"cannot use coverage {coverage}: not a coverage.json of botstage test") from None
         statuses = statuses or Statuses()
         statuses.untested, statuses.untested_transitions = untested, untested_transitions
     try:
-        return render(describe_part(checked, spec_path), fmt, statuses)
+        return render(item, fmt, statuses)
     except GraphvizMissing as exc:
         raise PictureError(str(exc)) from None
+    except (RuntimeError, subprocess.TimeoutExpired) as exc:  # Graphviz failed or hung
+        raise PictureError(str(exc)) from None
+
+
+def machine_picture(checked: Checked, runs: Item, mission: Path, note: Callable[[str], None]) -> Item:
+    """The machines in what runs (one picture, or a group of them); else the named ones; else the tree."""
+    found = machines_in(runs)
+    spec = checked.mission
+    assert spec is not None
+    if not found and spec.machines:
+        note(f"note: {mission} runs no machine; drawing the machines it names")
+        found = [describe_part(checked, ("machines", name)) for name in spec.machines]
+    if not found:
+        note(f"note: {mission} has no machine; drawing the tree it runs")
+        return runs
+    return found[0] if len(found) == 1 else group(f"{len(found)} machines of {spec.name}", found)

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
-from robots.gridmap import GridMap
+import math
+
+from robots.gridmap import GridMap, MapError
 from robots.gridmap import load as load_map
 from robots.interfaces import Pose2D
 from robots.profile import Profile, load_profile, profile_path
@@ -26,7 +28,10 @@ def robot_place(profile_name: str, world: str, start: str) -> tuple[Profile, Gri
     where = map_path(world)
     if where is None:
         raise PlaceError([f"error: unknown world {world!r}"])
-    grid = load_map(where)
+    try:
+        grid = load_map(where)
+    except MapError as exc:
+        raise PlaceError([f"error: {exc}"]) from None
     if start in grid.places:
         return profile, grid, Pose2D(*grid.places[start])
     try:
@@ -34,4 +39,6 @@ def robot_place(profile_name: str, world: str, start: str) -> tuple[Profile, Gri
     except ValueError:
         known = ", ".join(sorted(grid.places)) or "none"
         raise PlaceError([f"error: start {start!r} is neither a place of {world} ({known}) nor x,y,theta"]) from None
+    if not all(math.isfinite(v) for v in (x, y, theta)):
+        raise PlaceError([f"error: start {start!r}: x, y and theta should be finite numbers"])
     return profile, grid, Pose2D(x, y, theta)

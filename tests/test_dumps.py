@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from behaviors.render import MACHINE_FORMATS, TREE_FORMATS
+from behaviors.render import FORMATS
 from tests.test_cli import botstage
 from tests.tools import require
 
@@ -56,7 +56,7 @@ def check_output(fmt: str, data: bytes) -> None:
 
 
 @pytest.mark.parametrize("mission", MISSIONS, ids=lambda p: p.stem)
-@pytest.mark.parametrize("fmt", TREE_FORMATS)
+@pytest.mark.parametrize("fmt", FORMATS)
 def test_tree_in_every_format(tmp_path: Path, mission: Path, fmt: str) -> None:
     if fmt in ("svg", "png"):
         require("dot", "graphviz")
@@ -67,7 +67,7 @@ def test_tree_in_every_format(tmp_path: Path, mission: Path, fmt: str) -> None:
 
 
 @pytest.mark.parametrize("mission", MISSIONS, ids=lambda p: p.stem)
-@pytest.mark.parametrize("fmt", MACHINE_FORMATS)
+@pytest.mark.parametrize("fmt", FORMATS)
 def test_machine_in_every_format(tmp_path: Path, mission: Path, fmt: str) -> None:
     if fmt in ("svg", "png"):
         require("dot", "graphviz")
@@ -89,6 +89,83 @@ def test_machine_of_a_mission_without_one_draws_its_tree() -> None:
     assert result.returncode == 0
     assert result.stderr == "note: missions/tree_demo.yaml has no machine; drawing the tree it runs\n"
     assert result.stdout.startswith("main: sequence")
+
+
+def test_readme_step_3_lists_the_formats_both_verbs_draw() -> None:
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    listed = readme.split("Formats: ", 1)[1].split(".", 1)[0]
+    assert tuple(f.strip() for f in listed.replace("\n", " ").split(",")) == FORMATS
+
+
+def test_machine_draws_a_machine_that_sits_in_a_tree() -> None:
+    """The default mission runs its state chart beside helpers, in a parallel: that chart is drawn."""
+    for fmt, start in (("ascii", "machine entertainer"), ("unicode", "machine entertainer")):
+        result = botstage("machine", "--format", fmt)
+        assert result.returncode == 0 and result.stderr == ""
+        assert result.stdout.startswith(start) and "state wandering" in result.stdout
+    data = json.loads(botstage("machine", "--format", "json").stdout)
+    assert data["kind"] == "machine" and data["path"] == "main/entertainer"
+    assert data["preemptions"] == [{"when": "battery_low", "to": "main/entertainer/docking"}]
+    assert "main: parallel" not in botstage("machine", "--format", "ascii").stdout
+
+
+TWO = """name: two
+trees:
+  main:
+    parallel:
+      - machine:
+          initial: a
+          states: {a: {skill: wait, inputs: {duration: 1}, transitions: {success: done, failure: done}}}
+          outcomes: [done]
+      - sequence:
+          - log: {message: "beside"}
+          - machine: other
+machines:
+  other:
+    initial: b
+    states: {b: {skill: wait, inputs: {duration: 2}, transitions: {success: over, failure: over}}}
+    outcomes: [over]
+"""
+
+
+def test_machine_draws_every_machine_a_mission_runs_wherever_it_sits(tmp_path: Path) -> None:
+    mission = tmp_path / "two.yaml"
+    mission.write_text(TWO)
+    text = botstage("machine", str(mission), "--format", "ascii")
+    assert text.returncode == 0, text.stderr
+    lines = text.stdout.splitlines()
+    assert lines[0] == "2 machines of two"
+    assert [line for line in lines if "state " in line] == [
+        "|   |-- state a  success -> done, failure -> done",
+        "    |-- state b  success -> over, failure -> over",
+    ]
+    assert "beside" not in text.stdout  # the trees around them are not machines
+    data = json.loads(botstage("machine", str(mission), "--format", "json").stdout)
+    assert [c["kind"] for c in data["children"]] == ["machine", "machine"]
+    dot = botstage("machine", str(mission), "--format", "dot").stdout
+    assert dot.count("subgraph cluster_") == 4  # two machines, a state each
+    mermaid = botstage("machine", str(mission), "--format", "mermaid").stdout
+    assert mermaid.count("subgraph") == 4
+
+
+NAMED_ONLY = """name: named
+trees:
+  main: {log: {message: "no machine runs"}}
+machines:
+  other:
+    initial: b
+    states: {b: {skill: wait, inputs: {duration: 2}, transitions: {success: over, failure: over}}}
+    outcomes: [over]
+"""
+
+
+def test_machine_of_a_mission_that_runs_none_draws_the_machines_it_names(tmp_path: Path) -> None:
+    mission = tmp_path / "named.yaml"
+    mission.write_text(NAMED_ONLY)
+    result = botstage("machine", str(mission))
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == f"note: {mission} runs no machine; drawing the machines it names\n"
+    assert result.stdout.startswith("machine other") and "state b  success -> over, failure -> over" in result.stdout
 
 
 def test_labels_show_bindings_and_decorators() -> None:

@@ -23,6 +23,12 @@ from tests.test_outbox import TOKEN, make_photo, photos_in, wait_for
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def zeroed_idat(png: bytes) -> bytes:
+    """A PNG whole in its chunks whose compressed pixels are zeros: only decoding finds out."""
+    start = png.index(b"IDAT") + 4
+    return png[:start] + bytes(200) + png[start + 200 :]
+
+
 @pytest.fixture
 def jpeg(tmp_path: Path) -> bytes:
     return make_photo(tmp_path / "photo", size=(240, 320)).read_bytes()
@@ -90,10 +96,13 @@ def test_a_png_is_accepted_too(gallery, tmp_path) -> None:
         (lambda jpg, png: b"just some text", "not a JPEG or PNG image"),
         (lambda jpg, png: jpg[:-300], "the JPEG is truncated"),
         (lambda jpg, png: png[:-30], "the PNG is truncated"),
-        (lambda jpg, png: b"\xff\xd8\xff" + os.urandom(3000) + b"\xff\xd9", "the JPG does not decode"),
-        (lambda jpg, png: jpg[:20] + bytes(2000) + jpg[2020:], "does not decode"),
+        (lambda jpg, png: b"\xff\xd8\xff" + os.urandom(3000) + b"\xff\xd9", "the JPEG is damaged"),
+        (lambda jpg, png: jpg[:20] + bytes(2000) + jpg[2020:], "the JPEG is damaged (no marker at byte 20)"),
+        (lambda jpg, png: jpg[:2] + b"\xff\xd9", "the JPG does not decode (no frame header)"),
+        (lambda jpg, png: zeroed_idat(png), "the PNG does not decode"),
+        (lambda jpg, png: png[:16] + bytes(8) + png[24:], "the PNG has no pixels (0x0)"),
     ],
-    ids=["text", "truncated-jpeg", "truncated-png", "random-bytes", "zeroed-header"],
+    ids=["text", "truncated-jpeg", "truncated-png", "random-bytes", "zeroed-header", "no-frame", "zeroed-png", "empty"],
 )
 def test_what_is_not_a_whole_image_is_refused_with_415(gallery, jpeg, tmp_path, mangle, message) -> None:
     png = make_photo(tmp_path / "p", ext=".png").read_bytes()
@@ -252,3 +261,121 @@ def test_after_refusing_a_non_image_an_oversized_file_and_a_wrong_token_it_still
         assert post(strict, jpeg, headers=auth).status_code == 201
         assert httpx.get(strict.url + "/").status_code == 200
         assert len(photos_in(strict)) == 1
+
+
+def png_of(width: int, height: int, rows_per_block: int = 250) -> bytes:
+    """A grey PNG of any size, built as a stream: a big one is a small file (a decompression bomb)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    packer, block, parts = zlib.compressobj(1), bytes(1 + width) * rows_per_block, []
+    for _ in range(height // rows_per_block):
+        parts.append(packer.compress(block))
+    parts.append(packer.compress(bytes(1 + width) * (height % rows_per_block)) + packer.flush())
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", b"".join(parts)) + chunk(b"IEND", b"")
+
+
+def test_an_image_of_too_many_pixels_is_refused_from_its_header_before_decoding(gallery, monkeypatch) -> None:
+    from missions.gallery import images
+
+    bomb = png_of(8000, 8000)  # 64 MP in a small file
+    assert len(bomb) < 1_000_000
+    decoded: list[int] = []
+    real = images.cv2.imdecode
+    monkeypatch.setattr(images.cv2, "imdecode", lambda *a: decoded.append(1) or real(*a))
+    response = post(gallery, bomb, "bomb.png")
+    assert response.status_code == 413
+    assert response.json()["detail"] == "the image is 8000x8000 pixels (64.0 MP), over the gallery's limit of 40 MP"
+    assert decoded == [] and photos_in(gallery) == []
+    small = png_of(400, 300)
+    assert post(gallery, small, "small.png").status_code == 201 and decoded  # the same path decodes a sane one
+
+
+def test_the_pixel_limit_is_configurable(tmp_path, jpeg) -> None:
+    with start_gallery(tmp_path / "g", max_pixels=320 * 240 - 1) as strict:
+        response = post(strict, jpeg)
+        assert response.status_code == 413 and "320x240 pixels" in response.json()["detail"]
+    with start_gallery(tmp_path / "g", max_pixels=320 * 240) as exact:
+        assert post(exact, jpeg).status_code == 201
+
+
+@pytest.mark.parametrize("ext", [".jpg", ".png"])
+def test_bytes_after_the_image_are_kept_as_sent_and_not_taken_for_damage(gallery, tmp_path, ext) -> None:
+    photo = make_photo(tmp_path / "p", size=(240, 320), ext=ext).read_bytes()
+    sent = photo + b"\x00\x00trailer: a camera's maker notes or a motion photo's video" * 50
+    response = post(gallery, sent, f"p{ext}")
+    assert response.status_code == 201, response.text
+    digest = hashlib.sha256(sent).hexdigest()
+    served = httpx.get(f"{gallery.url}/photos/{digest}")
+    assert served.content == sent  # the hash names what was sent
+    assert served.headers["x-content-type-options"] == "nosniff"
+    thumb = httpx.get(f"{gallery.url}/thumbs/{digest}").content
+    assert cv2.imdecode(np.frombuffer(thumb, np.uint8), cv2.IMREAD_COLOR).shape[1] >= 160
+
+
+def test_an_exif_thumbnail_inside_a_truncated_jpeg_does_not_pass_for_its_end(gallery, jpeg) -> None:
+    """An APP1 segment holding a whole little JPEG (its own end marker) is skipped by its length."""
+    import struct
+
+    inner = b"\xff\xd8\xff\xd9"
+    app1 = b"\xff\xe1" + struct.pack(">H", 2 + 6 + len(inner)) + b"Exif\x00\x00" + inner
+    with_exif = jpeg[:2] + app1 + jpeg[2:]
+    assert post(gallery, with_exif).status_code == 201
+    response = post(gallery, with_exif[:-400])
+    assert response.status_code == 415 and "truncated" in response.json()["detail"]
+
+
+@pytest.mark.parametrize(
+    ("metadata", "status", "message"),
+    [
+        ('{"a": ' + "[" * 100_000 + "]" * 100_000 + "}", 413, "over the gallery's limit of 65,536"),
+        ('{"a": ' + "[" * 30_000 + "]" * 30_000 + "}", 400, "metadata nests deeper than 32 levels"),
+        ('{"a": ' + "[" * 33 + "]" * 33 + "}", 400, "metadata nests deeper than 32 levels"),
+        ('{"a": "' + "x" * 70_000 + '"}', 413, "over the gallery's limit of 65,536"),
+        ('{"a": NaN}', 400, "metadata is not JSON: NaN is not a number JSON allows"),
+        ('{"a": 1e400}', 400, "metadata is not JSON: 1e400 is out of range"),
+        ('{"a": ' + "1" * 5000 + "}", 400, "metadata is not JSON"),
+    ],
+    ids=["100000-deep", "30000-deep", "33-deep", "70-KB", "nan", "overflow", "5000-digits"],
+)
+def test_metadata_is_bounded_and_refused_with_a_reason(gallery, jpeg, metadata, status, message, caplog) -> None:
+    response = post(gallery, jpeg, metadata=metadata)
+    assert response.status_code == status and message in response.json()["detail"]
+    assert "Traceback" not in caplog.text and not [r for r in caplog.records if r.levelname == "ERROR"]
+    fine = '{"a": ' + "[" * 31 + '"[{ in a string"' + "]" * 31 + "}"  # brackets in strings do not count
+    assert post(gallery, jpeg, metadata=fine).status_code == 201
+    assert httpx.get(gallery.url + "/api/photos").status_code == 200
+
+
+def test_botstage_gallery_on_port_0_serves_on_a_free_port_it_prints(tmp_path) -> None:
+    command = [sys.executable, "-m", "missions.cli", "gallery", "--port", "0", "--dir", str(tmp_path / "g")]
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert process.stderr is not None
+        line = process.stderr.readline()  # printed once the socket is bound
+        url = line.split(" at ", 1)[1].split("/ ", 1)[0]
+        port = int(url.rsplit(":", 1)[1])
+        assert 0 < port < 65536
+        wait_for(lambda: httpx.get(url + "/healthz").status_code == 200)
+    finally:
+        process.terminate()
+        process.communicate(timeout=20)
+
+
+def test_botstage_gallery_refuses_a_folder_it_cannot_keep_photos_in(tmp_path) -> None:
+    index_is_a_folder = tmp_path / "g"
+    (index_is_a_folder / "gallery.sqlite").mkdir(parents=True)
+    result = subprocess.run(
+        [sys.executable, "-m", "missions.cli", "gallery", "--port", "0", "--dir", str(index_is_a_folder)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 1, result.stderr
+    assert f"error: cannot open the gallery in {index_is_a_folder}" in result.stderr
+    assert "Traceback" not in result.stderr

@@ -146,7 +146,7 @@ def test_spec_errors_are_collected_with_their_paths(make_engine) -> None:
     assert problems["sequence/1/wait/duraton"] == ("skill 'wait' has no input 'duraton'", "did you mean 'duration'?")
     assert problems["sequence/1/wait"][0] == "skill 'wait' needs input 'duration'"
     assert problems["sequence/2/wait/duration"][0].startswith("input 'duration' of 'wait': expected float, got str")
-    assert problems["sequence/3/timeout"][0] == "timeout needs a positive number of seconds, got -1"
+    assert problems["sequence/3/timeout"][0] == "timeout: input should be greater than 0"
     assert problems["sequence/4"][0] == "'retry' needs a `child` node"
     assert problems["sequence/5/subtree"] == ("unknown tree 'missing'", "")
     assert problems["sequence/6/while"][0].startswith("syntax error")

@@ -6,12 +6,16 @@ says which verbs there are and in what order `botstage --help` lists them.
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import typer
 
-from missions.cli import backends, chat, gallery, pictures, robots, run
+from missions.cli import backends, chat, gallery, maps, pictures, robots, run
 from missions.cli.bench import bench_app
 from missions.cli.run import scenario_app
 from missions.cli.speech import speech_app
+from robots import limits
 
 app = typer.Typer(
     no_args_is_help=True,
@@ -19,6 +23,28 @@ app = typer.Typer(
     pretty_exceptions_show_locals=False,  # a traceback must never print a secret held in a variable
     help="Orchestrate robots with behaviour trees and hierarchical state machines.",
 )
+
+
+@app.callback()
+def _options(
+    include_dir: list[Path] = typer.Option(
+        [],
+        "--include-dir",
+        metavar="DIR",
+        help="a folder missions may include files from besides their own folder tree and the "
+        "built-in library (repeatable; the same as adding it to BOTSTAGE_INCLUDE_PATH)",
+    ),
+) -> None:
+    """Orchestrate robots with behaviour trees and hierarchical state machines."""
+    for folder in include_dir:
+        if not folder.is_dir():
+            raise typer.BadParameter(f"{folder} is not a folder", param_hint="'--include-dir'")
+    if include_dir:  # through the environment, so scenario runs in child processes see it too
+        extra = [str(folder.resolve()) for folder in include_dir]
+        current = os.environ.get(limits.INCLUDE_PATH_ENV, "")
+        os.environ[limits.INCLUDE_PATH_ENV] = os.pathsep.join([*extra, *([current] if current else [])])
+
+
 app.add_typer(bench_app, name="bench")
 app.add_typer(scenario_app, name="scenario")
 app.add_typer(speech_app, name="speech")
@@ -37,6 +63,7 @@ app.command()(gallery.gallery)
 app.command()(robots.emulate)
 app.command()(robots.teleop)
 app.command()(backends.backends)
+app.command()(maps.places)
 
 
 def main() -> None:  # pragma: no cover - console script entry

@@ -7,15 +7,21 @@ from pathlib import Path
 
 import typer
 
-from missions.cli.common import _fail, _stderr, console
+from missions.cli.common import NON_NEGATIVE, _fail, _stderr, console, no_special_files, output_dir
 
 
 def chat(
     visitor: str = typer.Option("visitor", help="who you are: Maya remembers each visitor apart"),
     alice: bool = typer.Option(True, help="learn the A.L.I.C.E. set python-aiml ships (small talk)"),
-    aiml: list[Path] = typer.Option([], help="more AIML files or folders, learnt last (repeatable)"),
-    cache_dir: Path | None = typer.Option(None, help="brain cache folder (default: the user cache)"),
-    seed: int | None = typer.Option(None, help="seed Maya's random choices (default: a new one each time)"),
+    aiml: list[Path] = typer.Option(
+        [], help="more AIML files or folders, learnt last (repeatable)", callback=no_special_files
+    ),
+    cache_dir: Path | None = typer.Option(
+        None, help="brain cache folder (default: the user cache)", callback=output_dir
+    ),
+    seed: int | None = typer.Option(
+        None, help="seed Maya's random choices (default: a new one each time)", callback=NON_NEGATIVE
+    ),
 ) -> None:
     """Chat with Maya in the terminal: the converse skill's kernel and command routing.
 

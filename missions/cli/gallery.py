@@ -6,14 +6,19 @@ from pathlib import Path
 
 import typer
 
-from missions.cli.common import _fail, _stderr, console
+from missions.cli.common import POSITIVE, TCP_PORT, _fail, _stderr, console, output_dir
 
 
 def gallery(
     host: str = typer.Option("127.0.0.1", help="address to listen on (loopback by default)"),
-    port: int = typer.Option(8765, help="TCP port"),
-    folder: Path = typer.Option(Path("gallery"), "--dir", help="where photos and the index are kept"),
-    max_mb: float = typer.Option(20.0, help="largest photo accepted, MB (bigger: 413)"),
+    port: int = typer.Option(8765, help="TCP port, 1-65535 (0: a free one, printed)", callback=TCP_PORT),
+    folder: Path = typer.Option(
+        Path("gallery"), "--dir", help="where photos and the index are kept", callback=output_dir
+    ),
+    max_mb: float = typer.Option(20.0, help="largest photo accepted, MB (bigger: 413)", callback=POSITIVE),
+    max_mp: float = typer.Option(
+        40.0, help="most pixels a photo may have, megapixels (more: 413, refused before decoding)", callback=POSITIVE
+    ),
 ) -> None:
     """Serve the photo gallery the upload skill sends to: POST /photos, the page at /, JSON at /api/photos.
 
@@ -21,23 +26,27 @@ def gallery(
     """
     import os
 
-    from missions.gallery.server import is_loopback, serve
+    from missions.gallery.server import GalleryError, is_loopback, serve
     from skills.outbox.settings import TOKEN_ENV
 
     token = os.environ.get(TOKEN_ENV) or None
     if not is_loopback(host) and token is None:
         _stderr([f"warning: serving on {host} without a token: anyone who can reach it can upload (set {TOKEN_ENV})"])
-    if max_mb <= 0:
-        raise _fail("error: --max-mb must be positive", 2)
     shown = f"[{host}]" if ":" in host else host
-    _stderr(
-        [
-            f"gallery of {folder.resolve()} at http://{shown}:{port}/ (uploads: POST /photos"
-            + (", token required)" if token else ")")
-        ]
-    )
+
+    def bound(actual: int) -> None:
+        _stderr(
+            [
+                f"gallery of {folder.resolve()} at http://{shown}:{actual}/ (uploads: POST /photos"
+                + (", token required)" if token else ")")
+            ]
+        )
+
+    limits = {"max_bytes": max(1, int(max_mb * 2**20)), "max_pixels": max(1, int(max_mp * 1e6))}
     try:
-        serve(folder, host, port, token=token, max_bytes=int(max_mb * 2**20))
+        serve(folder, host, port, token=token, bound=bound, **limits)
+    except GalleryError as exc:
+        raise _fail(f"error: {exc}") from None
     except OSError as exc:
         raise _fail(f"error: cannot serve on {host}:{port}: {exc.strerror or exc}", 2) from None
 

@@ -8,8 +8,10 @@ import typer
 from rich.table import Table
 
 from missions.cli.backends import backend_help
-from missions.cli.common import _fail, _stderr, console
+from missions.cli.common import NON_NEGATIVE, POSITIVE, _fail, _stderr, console, number
 from robots.backend_registry import DEFAULT
+
+RATE = number(gt=0, le=1000)
 
 
 def skills() -> None:
@@ -64,8 +66,12 @@ def emulate(
     board: str = typer.Argument(..., help="the board to emulate: launchpad (Chefbot's Tiva C)"),
     world: str = typer.Option("restaurant", help="the map the simulated robot drives on"),
     start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
-    seed: int = typer.Option(0, help="the simulated world's seed"),
-    counter_start: int = typer.Option(0, help="the encoders' first count (near 2147483647 to test wrap-around)"),
+    seed: int = typer.Option(0, help="the simulated world's seed", callback=NON_NEGATIVE),
+    counter_start: int = typer.Option(
+        0,
+        help="the encoders' first count, a 32-bit signed value (near 2147483647 to test wrap-around)",
+        callback=number(ge=-(2**31), le=2**31 - 1),
+    ),
 ) -> None:
     """Play a robot's board on a pseudo-terminal, driving the simulated robot; until Ctrl-C.
 
@@ -90,9 +96,9 @@ def emulate(
 
     def faults() -> None:
         for line in sys.stdin:
-            reply = apply_fault(emulator, line)
+            reply = apply_fault(emulator, line)  # never raises: a bad line gets a reply, the console goes on
             if reply is not None:
-                console.print(reply, highlight=False)
+                console.print(reply, highlight=False, markup=False)
         stop.wait()  # end of input: keep running until Ctrl-C
 
     threading.Thread(target=faults, daemon=True).start()
@@ -114,10 +120,10 @@ def teleop(
     ),
     world: str = typer.Option("restaurant", help="the map (sim and emulator)"),
     start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
-    seed: int = typer.Option(0, help="the simulated world's seed"),
-    rate_hz: float = typer.Option(10.0, "--rate", help="commands a second"),
-    linear_step: float = typer.Option(0.05, help="m/s a key adds"),
-    angular_step: float = typer.Option(0.2, help="rad/s a key adds"),
+    seed: int = typer.Option(0, help="the simulated world's seed", callback=NON_NEGATIVE),
+    rate_hz: float = typer.Option(10.0, "--rate", help="commands a second (at most 1000)", callback=RATE),
+    linear_step: float = typer.Option(0.05, help="m/s a key adds", callback=POSITIVE),
+    angular_step: float = typer.Option(0.2, help="rad/s a key adds", callback=POSITIVE),
 ) -> None:
     """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits."""
     from missions.cli.backends import open_backend

@@ -12,8 +12,22 @@ from rich.table import Table
 
 from missions import DEFAULT_MISSION
 from missions.cli.backends import backend_help, backend_options, observer_help, observers
-from missions.cli.common import _fail, _stderr, console
+from missions.cli.common import (
+    NON_NEGATIVE,
+    _fail,
+    _stderr,
+    console,
+    input_file,
+    input_paths,
+    number,
+    os_problem,
+    output_dir,
+    output_file,
+)
 from robots.backend_registry import DEFAULT
+from robots.limits import MAX_SECONDS
+
+UNTIL = number(gt=0, le=MAX_SECONDS)  # as `until:` in a mission file
 
 scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")
 
@@ -74,13 +88,21 @@ def run(
         [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"
     ),
     observe: list[str] = typer.Option([], "--observe", metavar="NAME", help=observer_help()),
-    seed: int | None = typer.Option(None, help="random seed (default: the mission's)"),
-    until: float | None = typer.Option(None, help="stop after this many seconds of mission time"),
+    seed: int | None = typer.Option(None, help="random seed (default: the mission's)", callback=NON_NEGATIVE),
+    until: float | None = typer.Option(
+        None, help="stop after this many seconds of mission time (default: the mission's)", callback=UNTIL
+    ),
     realtime: bool = typer.Option(False, help="pace the simulation at wall-clock speed"),
-    out: Path | None = typer.Option(None, help="run folder (default: runs/<mission>-<timestamp>/)"),
+    out: Path | None = typer.Option(
+        None, help="run folder (default: runs/<mission>-<timestamp>/)", callback=output_dir
+    ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no live display"),
 ) -> None:
-    """Run a mission and write its run folder (trace.jsonl, summary.json, report.html)."""
+    """Run a mission and write its run folder (trace.jsonl, summary.json, report.html).
+
+    Exit status: 0 success or time limit, 1 nothing ran (invalid mission, a file), 2 usage,
+    3 the mission ended in failure, 4 the run stopped on an error, 130 interrupted.
+    """
     from missions.runner import MissionInvalid, RunError
     from missions.runner import run as run_mission
 
@@ -104,6 +126,8 @@ def run(
         raise _fail([str(p) for p in exc.problems]) from None
     except RunError as exc:
         raise _fail(exc.lines(), 2) from None
+    except OSError as exc:  # the run folder or a file in it cannot be written
+        raise _fail(f"error: {os_problem(exc)}") from None
     s = result.summary
     console.print(
         f"[bold]{s['mission']}[/]: outcome [bold]{result.outcome}[/]"
@@ -119,12 +143,14 @@ def run(
     )
     for error in s.get("observer_errors", []):
         _stderr([f"warning: observer {error}"])
-    if result.outcome == "interrupted":
-        raise typer.Exit(130)
+    if result.exit_status:
+        raise typer.Exit(result.exit_status)
 
 
 def test_scenarios(
-    paths: list[Path] = typer.Argument(None, help="scenario files or folders (default: missions/scenarios)"),
+    paths: list[Path] = typer.Argument(
+        None, help="scenario files or folders (default: missions/scenarios)", callback=input_paths
+    ),
     coverage: bool = typer.Option(False, "--coverage", help="print coverage per mission and write it"),
     coverage_file: Path = typer.Option(Path("coverage.json"), help="where --coverage writes its figures"),
 ) -> None:
@@ -133,6 +159,11 @@ def test_scenarios(
     from missions.coverage import Session, write
     from missions.scenario_suite import SuiteError, run_suite, scenario_files
 
+    if coverage:  # checked before the suite runs, not after
+        try:
+            output_file(coverage_file)
+        except typer.BadParameter as exc:
+            raise _fail(f"error: --coverage-file: {exc.message}", 2) from None
     roots = paths or [Path("missions/scenarios")]
     try:
         files = scenario_files(roots)
@@ -166,7 +197,10 @@ def test_scenarios(
             for kind, items in zip(("node", "state", "transition"), report.untested(), strict=True):
                 for name in items:
                     console.print(f"  untested {kind}: {name}", highlight=False, soft_wrap=True)
-        write(reports, coverage_file)
+        try:
+            write(reports, coverage_file)
+        except OSError as exc:
+            raise _fail(f"error: cannot write coverage: {os_problem(exc)}") from None
         console.print(f"coverage written to {coverage_file}", highlight=False, soft_wrap=True)
     console.print(f"{len(files) - failed} passed, {failed} failed", highlight=False)
     if failed:
@@ -175,9 +209,13 @@ def test_scenarios(
 
 @scenario_app.command("from-trace")
 def scenario_from_trace(
-    trace: Path = typer.Argument(..., help="a recorded run's trace.jsonl (its summary.json beside it)"),
-    output: Path = typer.Option(..., "-o", "--output", help="the scenario file to write"),
-    mission: Path | None = typer.Option(None, help="the mission (default: the one summary.json names)"),
+    trace: Path = typer.Argument(
+        ..., help="a recorded run's trace.jsonl (its summary.json beside it)", callback=input_file
+    ),
+    output: Path = typer.Option(..., "-o", "--output", help="the scenario file to write", callback=output_file),
+    mission: Path | None = typer.Option(
+        None, help="the mission (default: the one summary.json names)", callback=input_file
+    ),
 ) -> None:
     """Turn a recorded run into a regression scenario that replays its skill outcomes."""
     from missions.scenario import from_trace

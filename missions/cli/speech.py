@@ -27,6 +27,10 @@ def speech_recognize(
     recognizer = shared_recognizer()
     failed = False
     for path in files:
+        if path.exists() and not path.is_file():  # a folder, or a device or pipe that may never end
+            _stderr([f"error: {path}: not a file"])
+            failed = True
+            continue
         try:
             samples = read_wav(path)
         except (OSError, WavFormatError) as exc:

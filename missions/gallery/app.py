@@ -2,10 +2,11 @@
 
 ``POST /photos`` takes a multipart form: ``file`` (the photo), optional ``hash`` and header
 ``Idempotency-Key`` (its SHA-256, checked against the bytes received), ``metadata`` (a JSON
-object) and ``name``. Answers: 201 stored, 200 already there (``"duplicate": true``), 400 bad
-form or a hash that does not match, 401 missing or wrong token, 413 too large, 415 not a whole
-JPEG or PNG, 422 no file. Reading is open: ``GET /`` (the page), ``/api/photos`` (JSON),
-``/photos/{hash}``, ``/thumbs/{hash}``, ``/healthz``.
+object, at most 64 KB and 32 levels deep) and ``name``. Answers: 201 stored, 200 already there
+(``"duplicate": true``), 400 bad form, bad metadata or a hash that does not match, 401 missing or
+wrong token, 413 too large (bytes, pixels or metadata), 415 not a whole JPEG or PNG, 422 no
+file. Bytes after the image's end are kept as sent (the hash names what was sent). Reading is
+open: ``GET /`` (the page), ``/api/photos`` (JSON), ``/photos/{hash}``, ``/thumbs/{hash}``, ``/healthz``.
 
 A wrong token or an oversized body is refused by ``UploadGuard`` before the form is parsed.
 The guard reads the rest of the body (up to a cap) before it answers, because a server that
@@ -27,7 +28,8 @@ from typing import Annotated, Any
 from fastapi import FastAPI, File, Form, Header, HTTPException, UploadFile
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 
-from missions.gallery.images import BadImage, check_image
+from missions.gallery.images import DEFAULT_MAX_PIXELS, BadImage, ImageTooLarge, check_image
+from missions.gallery.metadata import BadMetadata, parse_metadata
 from missions.gallery.page import render_page
 from missions.gallery.store import GalleryStore
 from skills.outbox.images import MEDIA_TYPES
@@ -36,6 +38,7 @@ DEFAULT_MAX_BYTES = 20 * 2**20
 FORM_SLACK = 256 * 1024  # multipart boundaries, part headers and the metadata field
 DRAIN_FACTOR = 4  # read at most this many times the limit of a refused body before hanging up
 _HASH = re.compile(r"[0-9a-f]{64}")
+_NOSNIFF = {"X-Content-Type-Options": "nosniff"}  # a photo is shown as an image, whatever follows its end
 
 
 def _size(n: int) -> str:
@@ -125,9 +128,15 @@ def _clean_name(name: str | None, fallback: str) -> str:
 
 
 def create_app(
-    folder: str | Path, *, token: str | None = None, max_bytes: int = DEFAULT_MAX_BYTES, title: str = "botstage gallery"
+    folder: str | Path,
+    *,
+    token: str | None = None,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+    title: str = "botstage gallery",
 ) -> FastAPI:
-    """The gallery over ``folder`` (created if needed); ``token`` protects uploads."""
+    """The gallery over ``folder`` (created if needed); ``token`` protects uploads; an image of more
+    than ``max_pixels`` is refused from its header, before it is decoded."""
     store = GalleryStore(folder)
     app = FastAPI(title=title, docs_url=None, redoc_url=None, openapi_url=None)
     app.state.store = store
@@ -151,13 +160,13 @@ def create_app(
                     400, f"the photo's bytes do not match its {field} (damaged on the way?): got sha256 {digest}"
                 )
         try:
-            meta = json.loads(metadata)
-        except ValueError as error:
-            raise HTTPException(400, f"metadata is not JSON: {error}") from None
-        if not isinstance(meta, dict):
-            raise HTTPException(400, "metadata must be a JSON object")
+            meta = parse_metadata(metadata)
+        except BadMetadata as error:
+            raise HTTPException(error.status, str(error)) from None
         try:
-            ext, thumb = check_image(data)
+            ext, thumb = check_image(data, max_pixels)
+        except ImageTooLarge as error:
+            raise HTTPException(413, str(error)) from None
         except BadImage as error:
             raise HTTPException(415, str(error)) from None
         photo, created = store.add(digest, data, ext, thumb, _clean_name(name or file.filename, digest[:12]), meta)
@@ -173,12 +182,14 @@ def create_app(
     @app.get("/photos/{photo_hash}")
     def photo_file(photo_hash: str) -> FileResponse:
         photo = _photo(photo_hash)
-        return FileResponse(store.photos / photo.file, media_type=MEDIA_TYPES[Path(photo.file).suffix])
+        return FileResponse(
+            store.photos / photo.file, media_type=MEDIA_TYPES[Path(photo.file).suffix], headers=_NOSNIFF
+        )
 
     @app.get("/thumbs/{photo_hash}")
     def thumbnail(photo_hash: str) -> FileResponse:
         _photo(photo_hash)
-        return FileResponse(store.thumbs / f"{photo_hash}.jpg", media_type="image/jpeg")
+        return FileResponse(store.thumbs / f"{photo_hash}.jpg", media_type="image/jpeg", headers=_NOSNIFF)
 
     @app.get("/api/photos")
     def photos() -> dict[str, Any]:

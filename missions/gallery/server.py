@@ -11,18 +11,25 @@ from __future__ import annotations
 import ipaddress
 import logging
 import socket
+import sqlite3
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import uvicorn
 
 from missions.gallery.app import DEFAULT_MAX_BYTES, create_app
+from missions.gallery.images import DEFAULT_MAX_PIXELS
 
 _log = logging.getLogger("botstage.gallery")
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
+
+
+class GalleryError(Exception):
+    """The gallery cannot open its folder (not a folder, not writable, a damaged index)."""
 
 
 def is_loopback(host: str) -> bool:
@@ -48,9 +55,12 @@ def bind(host: str, port: int) -> socket.socket:
     return sock
 
 
-def _config(folder: Path, host: str, port: int, token: str | None, max_bytes: int, access_log: bool) -> uvicorn.Config:
+def _config(
+    folder: Path, host: str, port: int, token: str | None, limits: tuple[int, int], access_log: bool
+) -> uvicorn.Config:
+    max_bytes, max_pixels = limits
     return uvicorn.Config(
-        create_app(folder, token=token, max_bytes=max_bytes),
+        create_app(folder, token=token, max_bytes=max_bytes, max_pixels=max_pixels),
         host=host,
         port=port,
         log_level="info" if access_log else "warning",
@@ -68,11 +78,22 @@ def serve(
     *,
     token: str | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+    bound: Callable[[int], None] = lambda port: None,
 ) -> None:
-    """Serve until interrupted (Ctrl-C or SIGTERM); a port in use is an ``OSError`` here, not an exit."""
+    """Serve until interrupted (Ctrl-C or SIGTERM); a port in use is an ``OSError`` here, not an exit,
+    and a folder the gallery cannot keep its photos in a ``GalleryError``.
+
+    ``bound`` hears the port listened on once it is (port 0: the one the kernel picked)."""
     sock = bind(host, port)
     try:
-        uvicorn.Server(_config(Path(folder), host, port, token, max_bytes, access_log=True)).run(sockets=[sock])
+        port = sock.getsockname()[1]
+        try:
+            config = _config(Path(folder), host, port, token, (max_bytes, max_pixels), access_log=True)
+        except (OSError, sqlite3.Error) as exc:
+            raise GalleryError(f"cannot open the gallery in {folder}: {exc}") from exc
+        bound(port)
+        uvicorn.Server(config).run(sockets=[sock])
     finally:
         sock.close()
 
@@ -121,13 +142,14 @@ def start_gallery(
     port: int = 0,
     token: str | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
     timeout: float = 10.0,
 ) -> RunningGallery:
     """Start a gallery on a thread and return once it accepts connections (port 0: a free one)."""
     folder = Path(folder)
     sock = bind(host, port)
     port = sock.getsockname()[1]
-    server = uvicorn.Server(_config(folder, host, port, token, max_bytes, access_log=False))
+    server = uvicorn.Server(_config(folder, host, port, token, (max_bytes, max_pixels), access_log=False))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name=f"gallery-{port}", daemon=True)
     thread.start()
     deadline = time.monotonic() + timeout

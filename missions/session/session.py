@@ -341,7 +341,8 @@ class RunSession:
 
     def write_results(self) -> RunResult:
         """Every observer's ``finished``, in order; the last one writes summary.json."""
-        result = RunResult(self.outcome, self.reason, self.folder, {}, self.final_blackboard)
+        ended = {Status.SUCCESS: True, Status.FAILURE: False}.get(self.status)
+        result = RunResult(self.outcome, self.reason, self.folder, {}, self.final_blackboard, ended)
         self.hooks.run("finished", self, result)
         return result
 

@@ -22,7 +22,8 @@ boot (the MPU-6050's DMP knows no heading), printed with ``imu_decimals`` decima
 Faults on request: ``inject_garbage``, ``drop_lines``, ``stall`` (a wheel that does not turn
 whatever its motor gets), ``unplug``/``replug``/``disconnect`` (the pty goes away; the path
 comes back with a new pty), ``board_reset`` (as ``r``: "Reset Done", a boot pause, counters and
-clock from zero, motors off).
+clock from zero, motors off). Their arguments are bounded (``ValueError`` beyond): a fault
+never asks for more memory or time than a test could want.
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ from robots.drivers.launchpad_protocol import PWM_LIMIT, CommandDecoder
 from robots.sim.world import World
 
 SONAR_RAYS = 7
+WHEELS = ("left", "right")
+MAX_GARBAGE = 2**20  # bytes waiting to go out at once: a megabyte is 90 s of the line
+MAX_DROP = 1_000_000  # lines (over an hour of the firmware's output)
+MAX_UNPLUG_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -155,17 +160,25 @@ class LaunchpadEmulator:
     # -- faults -------------------------------------------------------------------------------
 
     def inject_garbage(self, count: int) -> None:
-        """``count`` random bytes go out between two lines of the next loop."""
+        """``count`` random bytes go out between two lines of the next loop (at most ``MAX_GARBAGE``
+        waiting at once)."""
         with self._fault_lock:
+            waiting = len(self._garbage)
+            if not 0 <= count <= MAX_GARBAGE - waiting:
+                raise ValueError(f"garbage of {count} bytes: 0 to {MAX_GARBAGE - waiting:,} more may wait to go out")
             self._garbage += self.rng.integers(0, 256, count, dtype=np.uint8).tobytes()
 
     def drop_lines(self, count: int) -> None:
-        """The next ``count`` lines are lost."""
+        """The next ``count`` lines are lost (at most ``MAX_DROP`` waiting)."""
         with self._fault_lock:
+            if not 0 <= count <= MAX_DROP - self._drop:
+                raise ValueError(f"dropping {count} lines: 0 to {MAX_DROP - self._drop:,} more may wait")
             self._drop += count
 
     def stall(self, wheel: str | None) -> None:
         """``left`` or ``right`` stops turning whatever its motor gets; None frees both."""
+        if wheel is not None and wheel not in WHEELS:
+            raise ValueError(f"no wheel {wheel!r}: left or right")
         with self._fault_lock:
             self.stalled = set() if wheel is None else {*self.stalled, wheel}
 
@@ -202,7 +215,9 @@ class LaunchpadEmulator:
         self.counters["plugs"] += 1
 
     def disconnect(self, for_s: float) -> None:
-        """Unplug now and plug back in after ``for_s`` seconds."""
+        """Unplug now and plug back in after ``for_s`` seconds (more than 0, at most ``MAX_UNPLUG_S``)."""
+        if not (math.isfinite(for_s) and 0 < for_s <= MAX_UNPLUG_S):
+            raise ValueError(f"unplugged for {for_s} s: more than 0 and at most {MAX_UNPLUG_S:g}")
         self.unplug()
         with self._fault_lock:
             self._replug_at = self.monotonic() + for_s
