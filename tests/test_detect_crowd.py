@@ -150,7 +150,8 @@ def test_nan_positions_are_dropped_and_counted_not_raised() -> None:
 
 def test_bad_inputs_and_robots_without_a_tracker_fail_with_a_reason() -> None:
     sim = NavSim("museum", "peoplebot", START, seed=4)
-    assert sim.run(DetectCrowd(), duration=-1.0).reason == "input 'duration': input should be greater than or equal to 0"
+    negative = sim.run(DetectCrowd(), duration=-1.0)
+    assert negative.reason == "input 'duration': input should be greater than or equal to 0"
     nan = sim.run(DetectCrowd(), distance=math.nan)
     assert nan.name == "failure" and "finite" in nan.reason, nan.reason
     chefbot = NavSim("restaurant", "chefbot", "kitchen")
