@@ -469,6 +469,8 @@ def _syntax_problem(exc: yaml.YAMLError, text: str, name: str) -> Problem:
         message = exc.problem or str(exc)
         if exc.context:
             message = f"{exc.context}, {message}"
+        if "maximum nesting depth" in message:  # libyaml ≥ 0.2.5's own cap (PyYAML 6.0.4 wheels): one wording
+            return Problem(where, f"nested more than {limits.MAX_NESTING} levels deep")
         return Problem(where, f"YAML syntax: {message}")
     if isinstance(exc, yaml.reader.ReaderError):
         before = text[: max(exc.position, 0)]

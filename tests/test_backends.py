@@ -257,7 +257,14 @@ def test_the_command_line_names_bad_options_and_lists_the_backends(tmp_path: Pat
     assert ": error: backend 'hardware' option 'ready_timeout': 'soon' from the robot profile: " in located.output
     assert not (tmp_path / "run").exists() and not (tmp_path / "x").exists()
 
-    listing = runner.invoke(app, ["backends"], env={"COLUMNS": "300"})
+    from missions.cli.common import console
+
+    width = console.width  # set when the CLI was first imported, from that process's terminal
+    console.width = 300  # a table wide enough that no cell wraps
+    try:
+        listing = runner.invoke(app, ["backends"])
+    finally:
+        console.width = width
     assert listing.exit_code == 0
     for text in ("sim", "emulator", "hardware", "port (str, required)", "counter_start (int, default 0)", "builtin"):
         assert text in listing.output
