@@ -358,3 +358,29 @@ def test_a_folder_is_made_only_for_a_scenario_that_can_run(tmp_path: Path) -> No
     right = tmp_path / "right.yaml"
     right.write_text(f"mission: {HELLO}\nexpect: {{outcome: done}}\n")
     assert run_in_folder(load_scenario(right), folder).passed and not made[1].exists()
+
+
+# -- include folders -------------------------------------------------------------------------------
+
+
+def test_include_dir_widens_where_includes_may_come_from_for_every_verb(tmp_path: Path) -> None:
+    library, missions = tmp_path / "library", tmp_path / "missions"
+    library.mkdir()
+    missions.mkdir()
+    (library / "greet.yaml").write_text("trees:\n  greet: {log: {message: hello}}\n")
+    mission = missions / "m.yaml"
+    mission.write_text("name: m\ninclude: [../library/greet.yaml]\ntrees:\n  main: {subtree: greet}\n")
+    refused = botstage("validate", str(mission))
+    assert refused.returncode == 1
+    assert f"{mission}:2:" in refused.stderr and "outside the folders a mission may include from" in refused.stderr
+    allowed = botstage("--include-dir", str(library), "validate", str(mission))
+    assert allowed.returncode == 0, allowed.stderr
+    by_env = botstage(
+        "run", str(mission), "-q", "--out", str(tmp_path / "run"), env={"BOTSTAGE_INCLUDE_PATH": str(library)}
+    )
+    assert by_env.returncode == 0, by_env.stderr
+    by_name = missions / "by_name.yaml"  # a name not beside the mission is looked up in the include folders
+    by_name.write_text("name: by_name\ninclude: [greet.yaml]\ntrees:\n  main: {subtree: greet}\n")
+    assert botstage("--include-dir", str(library), "validate", str(by_name)).returncode == 0
+    missing = botstage("--include-dir", str(tmp_path / "nowhere"), "validate", str(mission))
+    assert missing.returncode == 2 and "'--include-dir'" in missing.stderr and "is not a folder" in missing.stderr
