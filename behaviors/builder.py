@@ -124,6 +124,7 @@ class Builder:
         self.usages: list[KeyUsage] = []
         self.plans: list[MachinePlan] = []  # every machine planned, even one with problems
         self.entered: set[tuple[str, str]] = set()  # ("trees" or "machines", name) built through a reference
+        self.skills_used: dict[str, list[SpecPath]] = {}  # skill name -> where each of its nodes is written
         self._too_deep = False  # reported once: past the limit, every branch would report it again
         # a skill node, shared by tree leaves (the skill and condition kinds) and machine states
         self.skill_node = SkillBinder(self).node

@@ -65,6 +65,7 @@ class SkillBinder:
             hint = f"did you mean {exc.suggestion!r}?" if exc.suggestion else ""
             self.b.problem(skill_path, str(exc).split(" (")[0], hint)
             return None
+        self.b.skills_used.setdefault(skill_name, []).append(skill_path)
         if not isinstance(inputs, Mapping):
             self.b.problem(inputs_path, f"inputs of {skill_name!r} must be a mapping of port: value")
             return None

@@ -46,6 +46,9 @@ class Checked:
     key_types: dict[str, Any] = field(default_factory=dict)
     key_defaults: dict[str, Any] = field(default_factory=dict)
     keys_used: set[str] = field(default_factory=set)  # read or written by what the mission runs
+    # the skills what the mission runs calls, each with where its nodes are written (a deployment
+    # checks each is served somewhere)
+    skills_used: dict[str, list[Location]] = field(default_factory=dict)
     # what it was checked with: whatever builds it next (the run, its report, pictures) uses the same
     registry: Registry | None = None
     kinds: NodeKinds | None = None
@@ -144,6 +147,9 @@ def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKin
             _check_machines(builder.plans, out)
             _check_usages(builder.usages, mission, checked, out)
             checked.keys_used = {u.key for u in builder.usages}
+            checked.skills_used = {
+                name: [out.loaded.locations.find(p) for p in paths] for name, paths in builder.skills_used.items()
+            }
         # every named tree and machine is checked on its own too, used or not: once (a chain of
         # a thousand subtrees is built once, not once from each of its links)
         alone = engine.builder(mission.trees, mission.machines, params)

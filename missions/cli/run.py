@@ -32,13 +32,15 @@ UNTIL = number(gt=0, le=MAX_SECONDS)  # as `until:` in a mission file
 scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")
 
 
-def validate(missions: list[Path] = typer.Argument(..., help="mission files to check")) -> None:
-    """Check missions without running them; errors as file:line:col, exit status 1 if any."""
+def validate(missions: list[Path] = typer.Argument(..., help="mission or deployment files to check")) -> None:
+    """Check missions (or deployments, with their mission) without running them; errors as
+    file:line:col, exit status 1 if any."""
     from missions.check import check
+    from missions.deployment import check_deployment, is_deployment
 
     failed = False
     for path in missions:
-        checked = check(path)
+        checked = check_deployment(path) if is_deployment(path) else check(path)
         _stderr([str(problem) for problem in checked.problems])
         failed |= not checked.ok
         if checked.ok:
