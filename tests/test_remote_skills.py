@@ -17,9 +17,9 @@ from typing import Any
 import pytest
 
 from missions.runner import run
+from robots.remote import values
 from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
 from skills.registry import Registry
-from skills.remote import values
 from skills.remote.host import SkillHost
 from skills.remote.protocol import DirectLink, Step, TickReply, TickRequest, reply_of, request_of
 from skills.remote.proxy import RemoteLost, remote_of

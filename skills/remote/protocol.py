@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
-from skills.remote import values
+from robots.remote import values
 
 
 class Step(IntEnum):

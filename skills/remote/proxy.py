@@ -14,9 +14,9 @@ import logging
 import uuid
 from typing import Any, Protocol
 
+from robots.remote import values
 from skills.base import FAILURE, Outcome, Skill, SkillContext, SkillRun
 from skills.expression import ExpressionError, compile_expression
-from skills.remote import values
 from skills.remote.protocol import Call, State, Step, TickReply, TickRequest
 
 

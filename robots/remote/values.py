@@ -1,23 +1,35 @@
-"""Port and blackboard values as JSON text, without losing what JSON would blur.
+"""Values between processes as JSON text, without losing what JSON would blur.
 
-Plain JSON turns a tuple into a list and cannot hold bytes, NaN-free floats aside; a remote skill
-that compared a pose it wrote (a tuple) with the one it read back (a list) would write it again,
-and a distributed run would no longer match a local one. So tuples, bytes, non-string dict keys
-and non-finite floats are tagged (``{"$tuple": [...]}`` and so on), everything else is JSON as it
-is. Only data crosses: values of any other type are refused with their path, never pickled (a
+Plain JSON turns a tuple into a list and cannot hold bytes, arrays or non-finite floats; a remote
+skill that compared a pose it wrote (a tuple) with the one it read back (a list) would write it
+again, and a distributed run would no longer match a local one. So tuples, bytes, numpy arrays
+(dtype, shape and raw bytes), non-string dict keys, non-finite floats and the readings of
+``robots.interfaces`` are tagged (``{"$tuple": [...]}`` and so on); everything else is JSON as
+it is. Only data crosses: values of any other type are refused with their path, never pickled (a
 pickle from the network runs code).
 """
 
 from __future__ import annotations
 
 import base64
+import dataclasses
 import json
 import math
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
+
+from robots import interfaces
+
 TAG = "$"  # dicts whose only key starts with this are tags; a real dict like that is wrapped too
-_TAGS = ("$tuple", "$bytes", "$float", "$dict")
+# the readings and values of robots.interfaces, by class name: the only classes that cross
+READINGS: dict[str, type] = {
+    cls.__name__: cls
+    for cls in vars(interfaces).values()
+    if isinstance(cls, type) and dataclasses.is_dataclass(cls) and cls.__module__ == interfaces.__name__
+}
+_DTYPES = frozenset("?bBhHiIlLqQefdgFD")  # numeric numpy kinds; object arrays never cross
 MAX_TEXT = 16 * 1024 * 1024  # a message no skill needs; refused before parsing
 
 
@@ -42,10 +54,20 @@ def _pack(value: Any, path: str) -> Any:
         if all(isinstance(k, str) for k in value) and not any(k.startswith(TAG) for k in value):
             return {k: _pack(v, f"{path}.{k}") for k, v in value.items()}
         return {"$dict": [[_pack(k, f"{path} key"), _pack(v, f"{path}[{k!r}]")] for k, v in value.items()]}
-    if hasattr(value, "item") and callable(value.item) and getattr(value, "shape", None) == ():
+    if isinstance(value, np.ndarray):
+        if value.dtype.char not in _DTYPES:
+            raise ValueCodecError(f"{path}: an array of {value.dtype} cannot be sent to another process")
+        data = np.ascontiguousarray(value)
+        return {"$nd": [data.dtype.str, list(data.shape), base64.b64encode(data.tobytes()).decode("ascii")]}
+    if isinstance(value, np.generic):
         return _pack(value.item(), path)  # a numpy scalar
+    if type(value).__name__ in READINGS and type(value) is READINGS[type(value).__name__]:
+        fields = {f.name: _pack(getattr(value, f.name), f"{path}.{f.name}") for f in dataclasses.fields(value)}
+        return {"$reading": [type(value).__name__, fields]}
     kind = type(value).__name__
-    raise ValueCodecError(f"{path}: a {kind} cannot be sent to another process (only JSON data, tuples and bytes)")
+    raise ValueCodecError(
+        f"{path}: a {kind} cannot be sent to another process (only JSON data, tuples, bytes, numeric arrays and readings)"
+    )
 
 
 def _unpack(value: Any) -> Any:
@@ -63,7 +85,19 @@ def _unpack(value: Any) -> Any:
             return float(inner)
         if tag == "$dict":
             return {_hashable(_unpack(k)): _unpack(v) for k, v in inner}
+        if tag == "$nd":
+            return _array(*inner)
+        if tag == "$reading":
+            name, fields = inner
+            return READINGS[name](**{k: _unpack(v) for k, v in fields.items()})
     return {k: _unpack(v) for k, v in value.items()}
+
+
+def _array(dtype: str, shape: list[int], data: str) -> np.ndarray:
+    kind = np.dtype(dtype)
+    if kind.char not in _DTYPES:
+        raise ValueError(f"arrays of {kind} do not cross")
+    return np.frombuffer(base64.b64decode(data, validate=True), dtype=kind).reshape(shape).copy()
 
 
 def _hashable(key: Any) -> Any:
@@ -81,5 +115,5 @@ def loads(text: str, what: str = "value") -> Any:
         raise ValueCodecError(f"{what}: {len(text):,} characters is more than a remote skill may send ({MAX_TEXT:,})")
     try:
         return _unpack(json.loads(text))
-    except (json.JSONDecodeError, RecursionError, TypeError, ValueError) as error:
+    except (json.JSONDecodeError, RecursionError, TypeError, ValueError, KeyError) as error:
         raise ValueCodecError(f"{what}: not a value from a remote skill: {error}") from None
