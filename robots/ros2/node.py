@@ -340,6 +340,47 @@ class Ros2Node:
         """A subscription handing each ``type_name`` message on ``topic`` to ``callback(message, attachment)``."""
         return self._add(lambda i: Subscription(self, i, topic, type_name, callback, qos or QoS()))
 
+    def service(
+        self,
+        name: str,
+        type_name: str,
+        handler: Callable[[Any], Any],
+        qos: QoS | None = None,
+        *,
+        deferred: bool = False,
+    ) -> Any:
+        """A server of ``type_name`` (``pkg/srv/S``) on ``name``: ``handler(request)`` returns the response.
+
+        The handler runs on the server's own thread (robots.ros2.service); ``deferred=True`` hands
+        it a PendingRequest to answer later instead.
+        """
+        from robots.ros2.service import ServiceServer
+
+        return self._add(lambda i: ServiceServer(self, i, name, type_name, handler, qos or QoS(), deferred))
+
+    def client(self, name: str, type_name: str, qos: QoS | None = None) -> Any:
+        """A client of the ``type_name`` service on ``name`` (robots.ros2.service.ServiceClient)."""
+        from robots.ros2.service import ServiceClient
+
+        return self._add(lambda i: ServiceClient(self, i, name, type_name, qos or QoS()))
+
+    def action_server(self, name: str, type_name: str, **callbacks: Any) -> Any:
+        """A server of the ``type_name`` action (``pkg/action/A``) on ``name`` (robots.ros2.action.ActionServer).
+
+        ``callbacks`` and options are ActionServer's (``on_goal``, ``on_cancel``, ``on_accepted``, …).
+        """
+        from robots.ros2.action import ActionServer
+
+        self._check_open()
+        return ActionServer(self, name, type_name, **callbacks)
+
+    def action_client(self, name: str, type_name: str) -> Any:
+        """A client of the ``type_name`` action on ``name`` (robots.ros2.action.ActionClient)."""
+        from robots.ros2.action import ActionClient
+
+        self._check_open()
+        return ActionClient(self, name, type_name)
+
     def graph(self, timeout: float = 2.0) -> Graph:
         """The domain's ROS 2 graph as the live tokens say now (this node's own included).
 
