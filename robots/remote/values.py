@@ -66,7 +66,7 @@ def _pack(value: Any, path: str) -> Any:
         return {"$reading": [type(value).__name__, fields]}
     kind = type(value).__name__
     raise ValueCodecError(
-        f"{path}: a {kind} cannot be sent to another process (only JSON data, tuples, bytes, numeric arrays and readings)"
+        f"{path}: a {kind} cannot be sent to another process (only data, tuples, bytes, arrays and readings)"
     )
 
 
