@@ -242,6 +242,14 @@ class RunSession:
             self.clock = WallClock(rate)
             self.backend.use_clock(self.clock)
 
+    def robot_request(self, clock: Clock) -> OpenRequest | None:
+        """What opening the mission's robot takes, on ``clock``: for a robot served by another
+        process (``missions/distributed``), which opens it as this run would. After ``check``."""
+        if self._robot is None:
+            return None
+        self.clock = clock
+        return self._request()
+
     def _request(self) -> OpenRequest:
         assert self._robot is not None
         mission = self.mission

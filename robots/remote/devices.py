@@ -7,17 +7,27 @@ say what they say about the real device, and every call or attribute read is one
 order the caller makes them: a simulated sensor draws its noise in the same order as in one
 process. An exception the device raised is raised again on the caller's side with its message
 (as the same built-in type when it is one), so a skill that reports it says the same words.
+
+A result that is not data (a stateful helper such as a people tracker's crowd tracker) stays
+where it was made: the caller gets a *handle*, a proxy of the same kind addressed as ``@h<n>``,
+and a handle passed back as an argument is the object itself again on the serving side. A host
+keeps at most ``MAX_HANDLES`` (the oldest are forgotten first).
 """
 
 from __future__ import annotations
 
 import builtins
+import itertools
 import threading
+from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from robots.remote import values
+
+MAX_HANDLES = 4096
+HANDLE = "@h"  # the prefix of a handle's address (never an interface name)
 
 
 class RemoteDeviceError(Exception):
@@ -36,21 +46,23 @@ class Member:
     method: bool
 
 
+def members_of_object(device: Any) -> list[Member]:
+    """An object's public members (what a proxy of it will offer)."""
+    members = []
+    for name in dir(device):
+        if name.startswith("_"):
+            continue
+        try:
+            value = getattr(type(device), name, None) or getattr(device, name)
+        except Exception:  # a property that cannot be read now is still an attribute
+            value = None
+        members.append(Member(name, callable(value) and not isinstance(value, property)))
+    return members
+
+
 def describe(devices: Mapping[str, Any]) -> dict[str, list[Member]]:
     """Each device's public members (what a proxy will offer)."""
-    described: dict[str, list[Member]] = {}
-    for interface, device in devices.items():
-        members = []
-        for name in dir(device):
-            if name.startswith("_"):
-                continue
-            try:
-                value = getattr(type(device), name, None) or getattr(device, name)
-            except Exception:  # a property that cannot be read now is still an attribute
-                value = None
-            members.append(Member(name, callable(value) and not isinstance(value, property)))
-        described[interface] = members
-    return described
+    return {interface: members_of_object(device) for interface, device in devices.items()}
 
 
 def error_fields(error: BaseException) -> tuple[str, str]:
@@ -77,24 +89,55 @@ class DeviceHost:
         self.devices = devices
         self._lock = threading.Lock()  # a device is not made for two callers at once
         self.members = describe(devices)
+        self._handles: OrderedDict[str, tuple[Any, list[Member]]] = OrderedDict()
+        self._handle_of: dict[int, str] = {}
+        self._numbers = itertools.count(1)
 
-    def call(self, interface: str, member: str, args: tuple[Any, ...], kwargs: Mapping[str, Any]) -> Any:
-        """Call ``interface.member(*args, **kwargs)`` (or read the attribute); errors as the device raised them."""
+    def _target(self, interface: str) -> tuple[Any, list[Member]]:
+        if interface.startswith(HANDLE):
+            held = self._handles.get(interface)
+            if held is None:
+                raise LookupError(f"no object {interface} here any more (the robot process restarted?)")
+            return held
         device = self.devices.get(interface)
         if device is None:
             raise LookupError(f"this robot has no '{interface}' interface (it has: {', '.join(sorted(self.devices))})")
-        if member.startswith("_") or not any(m.name == member for m in self.members[interface]):
+        return device, self.members[interface]
+
+    def call(self, interface: str, member: str, args: tuple[Any, ...], kwargs: Mapping[str, Any]) -> Any:
+        """Call ``interface.member(*args, **kwargs)`` (or read the attribute); errors as the device raised them."""
+        device, members = self._target(interface)
+        if member.startswith("_") or not any(m.name == member for m in members):
             raise AttributeError(f"the {interface} device has no public member {member!r}")
-        with self._lock:
-            value = getattr(device, member)
-            return value(*args, **kwargs) if callable(value) else value
+        value = getattr(device, member)
+        return value(*args, **kwargs) if callable(value) else value
+
+    def _handle(self, value: Any, path: str) -> Any:
+        """A result that is not data: kept here, addressed by a handle."""
+        address = self._handle_of.get(id(value))
+        if address is None or self._handles.get(address, (None,))[0] is not value:
+            address = f"{HANDLE}{next(self._numbers)}"
+            self._handles[address] = (value, members_of_object(value))
+            self._handle_of[id(value)] = address
+            while len(self._handles) > MAX_HANDLES:
+                _, (forgotten, _members) = self._handles.popitem(last=False)
+                self._handle_of.pop(id(forgotten), None)
+        self._handles.move_to_end(address)
+        members = self._handles[address][1]
+        return {"$handle": [address, [[m.name, m.method] for m in members]]}
+
+    def _resolve(self, inner: Any) -> Any:
+        return self._target(str(inner[0]))[0]
 
     def answer(self, interface: str, member: str, args_json: str) -> tuple[str, str, str]:
         """One request from its wire fields: (result JSON, error type, error message)."""
         try:
-            call = values.loads(args_json, "the arguments") if args_json else {"args": (), "kwargs": {}}
-            result = self.call(interface, member, tuple(call["args"]), dict(call["kwargs"]))
-            return values.dumps(result, "the result"), "", ""
+            with self._lock:
+                call = (
+                    values.loads(args_json, "the arguments", self._resolve) if args_json else {"args": (), "kwargs": {}}
+                )
+                result = self.call(interface, member, tuple(call["args"]), dict(call["kwargs"]))
+                return values.dumps(result, "the result", self._handle), "", ""
         except Exception as error:
             kind, message = error_fields(error)
             return "", kind, message
@@ -108,13 +151,26 @@ class DeviceLink(Protocol):
     def call(self, interface: str, member: str, args_json: str) -> tuple[str, str, str]: ...
 
 
+def _handle_argument(value: Any, path: str) -> Any:
+    if isinstance(value, RemoteDevice) and value.interface.startswith(HANDLE):
+        return {"$handle": [value.interface]}
+    raise values.ValueCodecError(f"{path}: a {type(value).__name__} cannot be sent to the robot's process")
+
+
 def invoke(link: DeviceLink, interface: str, member: str, args: tuple[Any, ...], kwargs: Mapping[str, Any]) -> Any:
     """One call over ``link``: the result, or the device's exception raised again here."""
-    text = values.dumps({"args": args, "kwargs": dict(kwargs)}, f"{interface}.{member}() arguments")
+    text = values.dumps({"args": args, "kwargs": dict(kwargs)}, f"{interface}.{member}() arguments", _handle_argument)
     result, kind, message = link.call(interface, member, text)
     if kind:
         raise_again(kind, message)
-    return values.loads(result, f"{interface}.{member}() result") if result else None
+    if not result:
+        return None
+
+    def handle(inner: Any) -> RemoteDevice:
+        address, listed = inner
+        return proxy_class(str(address), [Member(str(n), bool(m)) for n, m in listed])(link)
+
+    return values.loads(result, f"{interface}.{member}() result", handle)
 
 
 def _method(interface: str, name: str) -> Any:

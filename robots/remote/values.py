@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import importlib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,11 @@ READINGS: dict[str, type] = {
     if isinstance(cls, type) and dataclasses.is_dataclass(cls) and cls.__module__ == interfaces.__name__
 }
 _DTYPES = frozenset("?bBhHiIlLqQefdgFD")  # numeric numpy kinds; object arrays never cross
+# frozen dataclasses of botstage's own packages are values too (a people frame, a crowd); a class
+# from anywhere else is never imported on a peer's say-so
+DATA_PACKAGES = ("robots.", "skills.", "behaviors.", "missions.")
+
+Other = Callable[[Any, str], Any]  # encodes what is not data (a handle to an object), or raises
 MAX_TEXT = 16 * 1024 * 1024  # a message no skill needs; refused before parsing
 
 
@@ -37,7 +43,12 @@ class ValueCodecError(ValueError):
     """A value that cannot cross to another process, with where it is."""
 
 
-def _pack(value: Any, path: str) -> Any:
+def _is_data_class(cls: type) -> bool:
+    params = getattr(cls, "__dataclass_params__", None)
+    return params is not None and params.frozen and cls.__module__.startswith(DATA_PACKAGES)
+
+
+def _pack(value: Any, path: str, other: Other | None = None) -> Any:
     if value is None or isinstance(value, (bool, str)):
         return value
     if isinstance(value, int):
@@ -45,15 +56,17 @@ def _pack(value: Any, path: str) -> Any:
     if isinstance(value, float):
         return value if math.isfinite(value) else {"$float": repr(value)}
     if isinstance(value, list):
-        return [_pack(v, f"{path}[{i}]") for i, v in enumerate(value)]
+        return [_pack(v, f"{path}[{i}]", other) for i, v in enumerate(value)]
     if isinstance(value, tuple):
-        return {"$tuple": [_pack(v, f"{path}[{i}]") for i, v in enumerate(value)]}
+        return {"$tuple": [_pack(v, f"{path}[{i}]", other) for i, v in enumerate(value)]}
     if isinstance(value, (bytes, bytearray)):
         return {"$bytes": base64.b64encode(bytes(value)).decode("ascii")}
     if isinstance(value, Mapping):
         if all(isinstance(k, str) for k in value) and not any(k.startswith(TAG) for k in value):
-            return {k: _pack(v, f"{path}.{k}") for k, v in value.items()}
-        return {"$dict": [[_pack(k, f"{path} key"), _pack(v, f"{path}[{k!r}]")] for k, v in value.items()]}
+            return {k: _pack(v, f"{path}.{k}", other) for k, v in value.items()}
+        return {
+            "$dict": [[_pack(k, f"{path} key", other), _pack(v, f"{path}[{k!r}]", other)] for k, v in value.items()]
+        }
     if isinstance(value, np.ndarray):
         if value.dtype.char not in _DTYPES:
             raise ValueCodecError(f"{path}: an array of {value.dtype} cannot be sent to another process")
@@ -62,35 +75,62 @@ def _pack(value: Any, path: str) -> Any:
     if isinstance(value, np.generic):
         return _pack(value.item(), path)  # a numpy scalar
     if type(value).__name__ in READINGS and type(value) is READINGS[type(value).__name__]:
-        fields = {f.name: _pack(getattr(value, f.name), f"{path}.{f.name}") for f in dataclasses.fields(value)}
+        fields = {f.name: _pack(getattr(value, f.name), f"{path}.{f.name}", other) for f in dataclasses.fields(value)}
         return {"$reading": [type(value).__name__, fields]}
+    if _is_data_class(type(value)):
+        cls = type(value)
+        fields = {
+            f.name: _pack(getattr(value, f.name), f"{path}.{f.name}", other)
+            for f in dataclasses.fields(value)
+            if f.init
+        }
+        return {"$data": [f"{cls.__module__}:{cls.__qualname__}", fields]}
+    if other is not None:
+        return other(value, path)
     kind = type(value).__name__
     raise ValueCodecError(
         f"{path}: a {kind} cannot be sent to another process (only data, tuples, bytes, arrays and readings)"
     )
 
 
-def _unpack(value: Any) -> Any:
+def _data_class(name: str) -> type:
+    module, _, qualname = name.partition(":")
+    if not module.startswith(DATA_PACKAGES):
+        raise ValueError(f"{name} is not one of botstage's data classes")
+    cls: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        cls = getattr(cls, part)
+    if not (isinstance(cls, type) and _is_data_class(cls)):
+        raise ValueError(f"{name} is not one of botstage's data classes")
+    return cls
+
+
+def _unpack(value: Any, other: Callable[[Any], Any] | None = None) -> Any:
     if isinstance(value, list):
-        return [_unpack(v) for v in value]
+        return [_unpack(v, other) for v in value]
     if not isinstance(value, dict):
         return value
     if len(value) == 1:
         ((tag, inner),) = value.items()
         if tag == "$tuple":
-            return tuple(_unpack(v) for v in inner)
+            return tuple(_unpack(v, other) for v in inner)
         if tag == "$bytes":
             return base64.b64decode(inner, validate=True)
         if tag == "$float":
             return float(inner)
         if tag == "$dict":
-            return {_hashable(_unpack(k)): _unpack(v) for k, v in inner}
+            return {_hashable(_unpack(k, other)): _unpack(v, other) for k, v in inner}
         if tag == "$nd":
             return _array(*inner)
         if tag == "$reading":
             name, fields = inner
-            return READINGS[name](**{k: _unpack(v) for k, v in fields.items()})
-    return {k: _unpack(v) for k, v in value.items()}
+            return READINGS[name](**{k: _unpack(v, other) for k, v in fields.items()})
+        if tag == "$data":
+            name, fields = inner
+            return _data_class(name)(**{k: _unpack(v, other) for k, v in fields.items()})
+        if tag == "$handle" and other is not None:
+            return other(inner)
+    return {k: _unpack(v, other) for k, v in value.items()}
 
 
 def _array(dtype: str, shape: list[int], data: str) -> np.ndarray:
@@ -104,16 +144,27 @@ def _hashable(key: Any) -> Any:
     return tuple(_hashable(k) for k in key) if isinstance(key, (list, tuple)) else key
 
 
-def dumps(value: Any, what: str = "value") -> str:
-    """``value`` as compact JSON text; a ValueCodecError naming the part that cannot cross."""
-    return json.dumps(_pack(value, what), separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+def dumps(value: Any, what: str = "value", other: Other | None = None) -> str:
+    """``value`` as compact JSON text; a ValueCodecError naming the part that cannot cross.
+
+    ``other(value, path)`` encodes what is not data (the device layer's handles) or raises.
+    """
+    return json.dumps(_pack(value, what, other), separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
-def loads(text: str, what: str = "value") -> Any:
+def loads(text: str, what: str = "value", other: Callable[[Any], Any] | None = None) -> Any:
     """The value ``dumps`` made; a ValueCodecError for text that is not one."""
     if len(text) > MAX_TEXT:
         raise ValueCodecError(f"{what}: {len(text):,} characters is more than a remote skill may send ({MAX_TEXT:,})")
     try:
-        return _unpack(json.loads(text))
-    except (json.JSONDecodeError, RecursionError, TypeError, ValueError, KeyError) as error:
+        return _unpack(json.loads(text), other)
+    except (
+        json.JSONDecodeError,
+        RecursionError,
+        TypeError,
+        ValueError,
+        KeyError,
+        ImportError,
+        AttributeError,
+    ) as error:
         raise ValueCodecError(f"{what}: not a value from a remote skill: {error}") from None

@@ -1,0 +1,117 @@
+"""`botstage up DEPLOYMENT` and `botstage serve process DEPLOYMENT NAME`: one mission, several processes.
+
+``serve process`` runs one process of a deployment by its role (missions/distributed/process.py);
+``up`` checks the deployment, then starts every process on this machine over loopback (the router
+process listening on a free port unless the file says where), relays each one's log prefixed
+with its name, reports how each ended, and stops them all when the mission ends or on Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import socket
+import sys
+from pathlib import Path
+
+import typer
+
+from missions.cli.common import NON_NEGATIVE, _fail, console
+
+CONNECT_HELP = "the Zenoh endpoint of the deployment's router process, e.g. tcp/192.168.1.10:7447"
+
+
+def _check(deployment: Path) -> None:
+    from missions.deployment import check_deployment
+
+    checked = check_deployment(deployment)
+    if not checked.ok:
+        raise _fail([str(problem) for problem in checked.problems], 2)
+
+
+def process(
+    deployment: Path = typer.Argument(..., help="the deployment file (missions/deployments/*.yaml)"),
+    name: str = typer.Argument(..., help="the process of the deployment to run here"),
+    out: Path = typer.Option(Path("runs/deployment"), help="the run folder (shared by the processes of one run)"),
+    seed: int | None = typer.Option(None, help="the mission's seed (default: the mission's)", callback=NON_NEGATIVE),
+    until: float | None = typer.Option(None, help="stop the mission after this many seconds of mission time"),
+    connect: list[str] = typer.Option([], "--connect", metavar="ENDPOINT", help=CONNECT_HELP),
+    listen: list[str] = typer.Option([], "--listen", metavar="ENDPOINT", help="where this process listens"),
+) -> None:
+    """Run one process of a deployment (its robot, skills or mission) and serve it until Ctrl-C."""
+    from missions.distributed.process import DeploymentError, serve_process
+
+    _check(deployment)
+    try:
+        code = serve_process(
+            deployment,
+            name,
+            out=out,
+            seed=seed,
+            until=until,
+            connect=connect,
+            listen=listen or None,
+            ready=lambda line: print(line, flush=True),
+        )
+    except DeploymentError as error:
+        raise _fail(str(error), 2) from None
+    raise typer.Exit(code)
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def up(
+    deployment: Path = typer.Argument(..., help="the deployment file (missions/deployments/*.yaml)"),
+    out: Path = typer.Option(Path("runs/deployment"), help="the run folder the processes share"),
+    seed: int | None = typer.Option(None, help="the mission's seed (default: the mission's)", callback=NON_NEGATIVE),
+    until: float | None = typer.Option(None, help="stop the mission after this many seconds of mission time"),
+    port: int = typer.Option(0, help="the router's loopback port (0: a free one)", min=0, max=65535),
+) -> None:
+    """Start every process of a deployment on this machine (loopback) and stop them together."""
+    from missions.deployment import check_deployment
+    from missions.distributed.supervisor import Supervisor
+
+    _check(deployment)
+    checked = check_deployment(deployment)
+    assert checked.deployment is not None
+    router = checked.router
+    endpoint = f"tcp/127.0.0.1:{port or free_port()}"
+    base = [sys.executable, "-m", "missions.cli", "serve", "process", str(deployment), "--out", str(out)]
+    if seed is not None:
+        base += ["--seed", str(seed)]
+    if until is not None:
+        base += ["--until", str(until)]
+    names = [router, *[n for n in checked.deployment.processes if n != router]]
+    commands = {
+        name: [*base, name, *(["--listen", endpoint] if name == router else ["--connect", endpoint])] for name in names
+    }
+    width = max(len(name) for name in names)
+
+    def show(name: str, line: str) -> None:
+        print(f"{name:<{width}} | {line}", flush=True)
+
+    supervisor = Supervisor(commands, show)
+    mission = checked.mission_process
+    title = f"{checked.deployment.name}: {len(names)} processes on {endpoint} (router: {router})"
+    console.print(title, highlight=False)
+    code = 1
+    try:
+        supervisor.start()
+        while True:
+            ended = supervisor.wait_any(3600.0)
+            if ended is None:
+                continue
+            if ended.name == mission:
+                code = supervisor.wait(mission)
+            else:
+                console.print(f"{ended.name}: {ended.state}: stopping the others", highlight=False)
+            break
+    except KeyboardInterrupt:
+        code = 130
+    finally:
+        supervisor.stop()
+        for name, state in supervisor.states().items():
+            console.print(f"  {name:<{width}}  {state}", highlight=False)
+    raise typer.Exit(code)

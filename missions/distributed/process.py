@@ -1,0 +1,388 @@
+"""One process of a deployment, by its role: the robot, skills, the mission, or several of these.
+
+``serve_process`` is what ``botstage serve process DEPLOYMENT NAME`` runs (and ``botstage up``
+starts once per process). Every process is a ROS 2 node named after it, on one Zenoh session:
+
+- **the robot** (``backend:``): opens the mission's robot as a one-process run would (same map,
+  start, people, voices, seed) and serves its devices (``robots/remote``) and its control
+  (``@backend``: the world's step at each mission tick, summary, result files);
+- **skills** (``skills:``): a ``SkillHost`` for them over the robot's devices (here, or proxies of
+  the robot process's) and the run services skills use (files, uploads), whose after-tick work
+  runs when the mission's tick reaches it (``/<name>/lockstep``);
+- **the mission** (``mission: true``): runs the mission with the skills served elsewhere replaced
+  by proxies (``skills/remote``) and the robot by ``RemoteRobot``; after each tick it waits until
+  every other process has finished that tick (lockstep), then merges their summary blocks.
+
+On a simulated backend the mission's ticks drive every clock, so a distributed run leaves the
+trace of the same run in one process. Loopback unless the deployment or ``--listen`` says more.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import signal
+import threading
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+from missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
+from missions.gallery.service import fill_counters
+from missions.runner import run
+from missions.session.plugins import service_registry
+from missions.session.result import RunResult
+from missions.session.session import RunSession
+from robots.backend import BackendKind, BackendOptions, OpenRequest
+from robots.backend_registry import BackendRegistry, open_kind
+from robots.clock import SimClock, WallClock
+from robots.remote import values
+from robots.remote.backend import CONTROL, RemoteRobot, served_devices
+from robots.remote.devices import DeviceHost
+from robots.remote.ros2_link import open_remote_devices, serve_devices
+from robots.ros2 import types
+from robots.ros2.node import Ros2Node
+from skills.registry import Registry
+from skills.remote.host import SkillHost
+from skills.remote.protocol import TickRequest
+from skills.remote.proxy import remote_of
+from skills.remote.ros2_link import SkillTickLink, serve_skill_host
+
+log = logging.getLogger(__name__)
+
+LOCKSTEP_TYPE = "botstage_msgs/srv/Lockstep"
+READY_TIMEOUT_S = 60.0
+STEP, FINISH = 0, 1
+
+
+class DeploymentError(RuntimeError):
+    """A deployment that cannot run as asked (its problems were printed by the caller)."""
+
+
+def lockstep_service(process: str) -> str:
+    return f"/{process}/lockstep"
+
+
+@dataclass
+class Role:
+    """What one process does, from the checked deployment."""
+
+    name: str
+    checked: CheckedDeployment
+    mission_path: Path
+    robot_process: str | None  # the process that opens the robot (None: the mission's own)
+    skills_here: list[str]
+    skill_hosts: dict[str, str]  # skill -> process, for the skills the mission calls
+    backend: str | None
+    runs_mission: bool
+    others: list[str] = field(default_factory=list)  # processes the mission steps in lockstep
+
+    @classmethod
+    def of(cls, path: Path, name: str) -> Role:
+        checked = check_deployment(path)
+        if not checked.ok:
+            raise DeploymentError("\n".join(str(p) for p in checked.problems))
+        deployment = checked.deployment
+        assert deployment is not None
+        if name not in deployment.processes:
+            known = ", ".join(deployment.processes)
+            raise DeploymentError(f"{path}: no process {name!r} in this deployment (it has: {known})")
+        process = deployment.processes[name]
+        hosts = checked.skill_hosts()
+        robot = next((n for n, p in deployment.processes.items() if p.backend), None)
+        skills_here = sorted({s for s, h in hosts.items() if h == name} | set(process.skills or ()))
+        others = [
+            n
+            for n, p in deployment.processes.items()
+            if n != name and (p.skills or p.gallery) and not p.mission and any(h == n for h in hosts.values())
+        ]
+        return cls(
+            name,
+            checked,
+            (path.parent / deployment.mission).resolve(),
+            robot if robot is not None and robot != name else None,
+            skills_here,
+            hosts,
+            process.backend,
+            process.mission,
+            others,
+        )
+
+
+def endpoints(role: Role, connect: list[str], listen: list[str] | None) -> tuple[list[str], list[str], str]:
+    """Where the process listens, what it connects to, and its Zenoh mode."""
+    deployment = role.checked.deployment
+    assert deployment is not None
+    process = deployment.processes[role.name]
+    router = role.checked.router == role.name
+    heard = listen if listen is not None else (process.listen or ([ROUTER_ENDPOINT] if router else []))
+    return (
+        heard or ["tcp/127.0.0.1:0"],
+        ([] if router else connect or [ROUTER_ENDPOINT]),
+        "router" if router else "peer",
+    )
+
+
+class Lockstep:
+    """This process's side of the mission's ticks: after-tick work of its services, then the answer."""
+
+    def __init__(self, clock: SimClock, services: list[Any], session: Any) -> None:
+        self.clock, self.services, self.session = clock, services, session
+        self._response = types.message_class(f"{LOCKSTEP_TYPE}_Response")
+
+    def handle(self, request: Any) -> Any:
+        try:
+            if request.kind == FINISH:
+                return self._response(summary_json=values.dumps(self.finish(), "the summary"), error="")
+            self.clock.ticks = int(request.ticks)
+            for service in self.services:
+                after = getattr(service, "after_tick", None)
+                if after is not None:
+                    after(self.session)
+            return self._response(summary_json="", error="")
+        except Exception as error:  # said to the mission, which records it; this process serves on
+            log.exception("lockstep request failed")
+            return self._response(summary_json="", error=f"{type(error).__name__}: {error}")
+
+    def finish(self) -> dict[str, Any]:
+        result = RunResult("", "", self.session.folder, {"counters": {}}, {}, None)
+        for service in self.services:
+            finished = getattr(service, "finished", None)
+            if finished is not None:
+                finished(self.session, result)
+        result.summary.pop("counters", None)
+        return result.summary
+
+
+class RemoteKind(BackendKind):
+    """The mission's robot, opened by the robot process: proxies of its devices over the node."""
+
+    name = "remote"
+    description = "a robot served by another botstage process (missions/distributed)"
+
+    def __init__(self, node: Ros2Node, robot: str, simulated: bool) -> None:
+        self.node, self.robot, self.simulated = node, robot, simulated  # type: ignore[misc]
+
+    def open(self, request: OpenRequest, options: BackendOptions) -> Any:
+        _, proxies = open_remote_devices(self.node, self.robot, READY_TIMEOUT_S)
+        return RemoteRobot(proxies, request.profile, request.grid, request.clock)
+
+
+class LockstepObserver:
+    """The mission's side: after each tick, every other process finishes it; at the end, their summaries."""
+
+    name = "lockstep"
+
+    def __init__(self, node: Ros2Node, processes: list[str]) -> None:
+        self.request = types.message_class(f"{LOCKSTEP_TYPE}_Request")
+        self.clients = {p: node.client(lockstep_service(p), LOCKSTEP_TYPE) for p in processes}
+
+    def wait_ready(self, timeout: float) -> None:
+        for process, client in self.clients.items():
+            if not client.wait_for_service(timeout):
+                raise DeploymentError(f"process {process!r} did not come up within {timeout:g} s")
+
+    def _call(self, process: str, kind: int, session: Any) -> Any:
+        response = self.clients[process].call(
+            self.request(kind=kind, ticks=session.clock.ticks, time=session.clock.now())
+        )
+        if response.error:
+            raise RuntimeError(f"process {process!r}: {response.error}")
+        return response
+
+    def after_tick(self, session: Any) -> None:
+        for process in self.clients:
+            self._call(process, STEP, session)
+
+    def finished(self, session: Any, result: RunResult) -> None:
+        for process in self.clients:
+            blocks = values.loads(self._call(process, FINISH, session).summary_json or "{}", "a summary")
+            for name, block in blocks.items():
+                result.summary[name] = block
+                if name == "upload":
+                    fill_counters(result.summary["counters"], block)
+
+
+def _open_robot(role: Role, seed: int | None, clock: SimClock | WallClock) -> tuple[Any, RunSession]:
+    session = RunSession(role.mission_path, seed=seed, backend=role.backend or "sim")
+    session.check()
+    request = session.robot_request(clock)
+    if request is None:
+        raise DeploymentError(f"the mission {role.mission_path.name} names no robot for {role.name!r} to serve")
+    return open_kind(session.kind, request, session.options), session
+
+
+# The robot's estimates (localisation, navigation) stay with the mission: updating them reads the
+# laser after every tick, and a second reader in another process would draw the sensor's noise
+# twice. A process that serves navigation skills is the mission's.
+MISSION_ONLY_SERVICES = frozenset({"robot"})
+
+
+def _session_services(folder: Path, clock: Any, seed: int, backend: Any) -> tuple[list[Any], dict[str, Any], Any]:
+    """The run services a skills process offers (files, uploads, orders, plug-ins'), opened."""
+    services = service_registry()
+    session = SimpleNamespace(folder=folder, clock=clock, seed=seed, backend=backend)
+    opened, interfaces = [], dict(backend.devices) if backend is not None else {}
+    for name in services:
+        if name in MISSION_ONLY_SERVICES:
+            continue
+        service = services.create(name)
+        interfaces.update(service.open(session))
+        opened.append(service)
+    return opened, interfaces, session
+
+
+def serve_process(
+    path: Path,
+    name: str,
+    *,
+    out: Path,
+    seed: int | None = None,
+    until: float | None = None,
+    connect: list[str] | None = None,
+    listen: list[str] | None = None,
+    ready: Callable[[str], None] = print,
+    stop: threading.Event | None = None,
+) -> int:
+    """Run process ``name`` of the deployment at ``path`` until it is stopped (or its mission ends)."""
+    role = Role.of(path, name)
+    listen_on, connect_to, mode = endpoints(role, connect or [], listen)
+    out.mkdir(parents=True, exist_ok=True)
+    stop = stop or threading.Event()
+    with contextlib.ExitStack() as stack, Ros2Node(name, listen=listen_on, connect=connect_to, mode=mode) as node:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(ValueError):  # not the main thread (tests)
+                previous = signal.signal(signum, lambda *_: stop.set())
+                stack.callback(signal.signal, signum, previous)
+        if role.runs_mission:
+            return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready)
+        _serve(role, node, stack, out=out, seed=seed)
+        ready(f"{name} ready")
+        stop.wait()
+    return 0
+
+
+def _serve(role: Role, node: Ros2Node, stack: contextlib.ExitStack, *, out: Path, seed: int | None) -> None:
+    checked_mission = role.checked.mission
+    assert checked_mission is not None and checked_mission.mission is not None
+    mission = checked_mission.mission
+    run_seed = mission.seed if seed is None else seed
+    clock = SimClock(mission.rate_hz)
+    backend: Any = None
+    if role.backend:
+        backend, _ = _open_robot(role, seed, clock)
+        stack.callback(backend.close)
+        serve_devices(node, DeviceHost(served_devices(backend, clock)))
+    elif role.skills_here and role.robot_process:
+        _, proxies = open_remote_devices(node, role.robot_process, READY_TIMEOUT_S)
+        session = RunSession(role.mission_path, seed=seed)
+        session.check()
+        request = session.robot_request(clock)
+        assert request is not None
+        backend = RemoteRobot(proxies, request.profile, request.grid, clock)
+    if not role.skills_here:
+        return
+    services, interfaces, session_like = _session_services(out, clock, run_seed, backend)
+    for service in reversed(services):
+        stack.callback(service.close)
+    interfaces.pop(CONTROL, None)
+    reachable = MissionInterfaces(interfaces, node, role.checked.mission_process)
+    host = SkillHost(Registry.default(), reachable, role.skills_here)
+    stack.callback(host.close)
+    following = _following(host, clock)
+    serve_skill_host(node, following)
+    lockstep = Lockstep(clock, services, session_like)
+    node.service(lockstep_service(role.name), LOCKSTEP_TYPE, lockstep.handle)
+
+
+class MissionInterfaces(Mapping[str, Any]):
+    """A skills process's interfaces: its own first, then those the mission's process serves.
+
+    The robot's estimates (``localization``, ``navigation``, ``people_tracking``) live with the
+    mission (see ``MISSION_ONLY_SERVICES``); a skill here that uses one gets a proxy, made when it
+    is first asked for (the mission serves them once its run has started).
+    """
+
+    def __init__(self, own: dict[str, Any], node: Ros2Node, mission: str) -> None:
+        self.own, self.node, self.mission = own, node, mission
+        self._theirs: dict[str, Any] | None = None
+        self._lock = threading.Lock()
+
+    def _mission_side(self) -> dict[str, Any]:
+        with self._lock:
+            if self._theirs is None:
+                _, self._theirs = open_remote_devices(self.node, self.mission, READY_TIMEOUT_S)
+            return self._theirs
+
+    def __getitem__(self, name: str) -> Any:
+        if name in self.own:
+            return self.own[name]
+        return self._mission_side()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter({**dict.fromkeys(self.own), **dict.fromkeys(self._mission_side())})
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+
+class ServeMissionInterfaces:
+    """The mission's observer that serves its run services' interfaces to the skills processes."""
+
+    name = "serve_interfaces"
+
+    def __init__(self, node: Ros2Node) -> None:
+        self.node = node
+
+    def started(self, session: Any) -> None:
+        devices = set(session.backend.devices) if session.backend is not None else set()
+        own = {name: value for name, value in session.interfaces.items() if name not in devices}
+        serve_devices(self.node, DeviceHost(own))
+
+
+def _following(host: SkillHost, clock: SimClock) -> Any:
+    """The host, with this process's clock set to each request's tick before it runs (services read it)."""
+
+    class Following:
+        def handle(self, request: TickRequest, timeout: float | None = None) -> Any:
+            clock.ticks = request.ticks
+            return host.handle(request, timeout)
+
+    return Following()
+
+
+def _run_mission(
+    role: Role, node: Ros2Node, *, out: Path, seed: int | None, until: float | None, ready: Callable[[str], None]
+) -> int:
+    registry = Registry.default()
+    links: dict[str, SkillTickLink] = {}
+    for skill, process in sorted(role.skill_hosts.items()):
+        if process == role.name:
+            continue
+        link = links.setdefault(process, SkillTickLink(node, process))
+        registry.register(remote_of(registry.get(skill), link), replace=True)
+    for process, link in links.items():
+        if not link.wait_for_remote(READY_TIMEOUT_S):
+            raise DeploymentError(f"process {process!r} does not serve its skills (waited {READY_TIMEOUT_S:g} s)")
+    backends = BackendRegistry.default()
+    backend = "sim"
+    if role.robot_process:
+        backends.register(RemoteKind(node, role.robot_process, simulated=True), replace=True)
+        backend = "remote"
+    lockstep = LockstepObserver(node, role.others)
+    lockstep.wait_ready(READY_TIMEOUT_S)
+    ready(f"{role.name} runs the mission")
+    result = run(
+        role.mission_path,
+        backend=backend,
+        seed=seed,
+        until=until,
+        out=out,
+        registry=registry,
+        observers=[ServeMissionInterfaces(node), lockstep],
+        backends=backends,
+    )
+    ready(f"{role.name}: {result.outcome} ({result.reason})")
+    return result.exit_status
