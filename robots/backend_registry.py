@@ -1,6 +1,6 @@
 """Finds backends by name: the built-in ones and third-party ones from the entry-point group.
 
-Built-ins are registered exactly like plugins (``sim``, ``emulator`` and ``hardware`` are also
+Built-ins are registered exactly like plugins (``sim``, ``emulator``, ``hardware`` and ``ros2`` are also
 declared under ``botstage.backends`` in pyproject.toml; the list here keeps an uninstalled
 checkout working, and the same class from both is one backend). A broken plugin is recorded in
 ``problems``, never fatal: the other backends stay usable.
@@ -24,6 +24,7 @@ BUILTIN = (
     "robots.sim.kind:SimKind",
     "robots.emulators.kind:EmulatorKind",
     "robots.drivers.kind:HardwareKind",
+    "robots.ros2.backend:Ros2Kind",
 )
 DEFAULT = "sim"
 

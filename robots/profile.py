@@ -2,8 +2,9 @@
 
 A profile gives the base's geometry and limits, the battery, which interfaces the robot has
 (and which hardware driver provides each; the simulator provides them all), each device's
-parameters, default parameters for skills, and options per backend (``backends:``, checked
-against that backend's options when a run opens it, errors at their line). Limits written here
+parameters, default parameters for skills, options per backend (``backends:``, checked
+against that backend's options when a run opens it, errors at their line), and the robot's ROS 2
+topics (``ros2:``: names and publish rates by channel, robots/ros2/topics.py). Limits written here
 are enforced by the backends, never trusted to callers.
 """
 
@@ -11,13 +12,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from robots import PROFILES_DIR
 from robots.interfaces import INTERFACES
 from robots.located_yaml import Loaded, Problem, find_yaml, load_document
+from robots.ros2.topics import check_section
 
 
 class _Strict(BaseModel):
@@ -106,6 +108,16 @@ class Control(_Strict):
     watchdog_s: float = Field(default=0.5, gt=0, description="s without a velocity command before the motors stop")
 
 
+class Ros2Section(_Strict):
+    """How the robot appears on a ROS 2 graph: topic names and publish rates by channel
+    (robots/ros2/topics.py lists the channels and ROS's defaults: cmd_vel, odom, scan, ...)."""
+
+    topics: dict[str, str] = Field(default_factory=dict, description="topic name by channel, e.g. {laser: base_scan}")
+    rates_hz: dict[str, Annotated[float, Field(gt=0)]] = Field(
+        default_factory=dict, description="how often a robot process publishes a reading, by channel"
+    )
+
+
 class Profile(_Strict):
     name: str
     description: str = ""
@@ -118,6 +130,7 @@ class Profile(_Strict):
         default_factory=dict,
         description="options per backend, e.g. {hardware: {port: /dev/ttyACM0}}; checked by the backend opened",
     )
+    ros2: Ros2Section = Field(default_factory=Ros2Section)
 
 
 def known_profiles() -> list[str]:
@@ -168,6 +181,8 @@ def load_profile(path: str | Path) -> tuple[Profile | None, list[Problem], Loade
             at(("interfaces", name), f"unknown interface {name!r} (known: {', '.join(INTERFACES)})")
         if device.range_min is not None and device.range_max is not None and device.range_min >= device.range_max:
             at(("interfaces", name, "range_min"), "must be below range_max")
+    for where, message, hint in check_section(profile.ros2.topics, profile.ros2.rates_hz, list(profile.interfaces)):
+        problems.append(Problem(loaded.locations.find(("ros2", *where)), f"ros2: {message}", hint))
     if profile.name != Path(path).stem and Path(path).parent == PROFILES_DIR:
         at(("name",), f"a shipped profile's name is its file's name ({Path(path).stem!r})")
     return (profile if not problems else None), problems, loaded

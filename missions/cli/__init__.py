@@ -11,9 +11,10 @@ from pathlib import Path
 
 import typer
 
-from missions.cli import backends, chat, gallery, maps, pictures, robots, run
+from missions.cli import backends, chat, distributed, gallery, maps, pictures, robots, run
 from missions.cli.bench import bench_app
 from missions.cli.run import scenario_app
+from missions.cli.serve import serve_app
 from missions.cli.speech import speech_app
 from robots import limits
 
@@ -48,6 +49,8 @@ def _options(
 app.add_typer(bench_app, name="bench")
 app.add_typer(scenario_app, name="scenario")
 app.add_typer(speech_app, name="speech")
+app.add_typer(serve_app, name="serve")
+serve_app.command("process")(distributed.process)
 
 app.command()(run.validate)
 app.command()(run.schema)
@@ -64,6 +67,7 @@ app.command()(robots.emulate)
 app.command()(robots.teleop)
 app.command()(backends.backends)
 app.command()(maps.places)
+app.command()(distributed.up)
 
 
 def main() -> None:  # pragma: no cover - console script entry
