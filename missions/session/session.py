@@ -309,9 +309,18 @@ class RunSession:
                 while until is None or clock.now() < until - 1e-9:
                     self.hooks.run("before_tick", self)
                     self.status = engine.tick()
-                    if self.backend is not None:
-                        self.backend.step()  # the world moves over the tick just decided
-                    self.hooks.run("after_tick", self)  # then estimates update, uploads settle, displays
+                    try:
+                        if self.backend is not None:
+                            self.backend.step()  # the world moves over the tick just decided
+                        self.hooks.run("after_tick", self)  # then estimates update, uploads settle, displays
+                    except (StopRun, KeyboardInterrupt):
+                        raise
+                    except Exception as exc:  # a robot that stopped reporting, a lost peer: the run ends, said
+                        engine.error = f"after tick {clock.ticks}: {type(exc).__name__}: {exc}"
+                        engine.trace.emit("error", engine.error)
+                        engine.halt(f"engine error: {engine.error}")
+                        self.status = Status.FAILURE
+                        break
                     if self.status in DONE:
                         break
         except KeyboardInterrupt:
