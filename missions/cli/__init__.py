@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from missions.cli import backends, chat, distributed, gallery, maps, pictures, robots, run
+from missions.cli import backends, certs, chat, distributed, gallery, maps, pictures, robots, run
 from missions.cli.bench import bench_app
 from missions.cli.run import scenario_app
 from missions.cli.serve import serve_app
@@ -68,6 +68,7 @@ app.command()(robots.teleop)
 app.command()(backends.backends)
 app.command()(maps.places)
 app.command()(distributed.up)
+app.command()(certs.certs)
 
 
 def main() -> None:  # pragma: no cover - console script entry

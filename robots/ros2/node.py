@@ -58,10 +58,19 @@ def session_config(
     connect: Sequence[str] = (),
     mode: Mode = "peer",
     options: Mapping[str, Any] | None = None,
+    *,
+    allow_remote: bool = False,
 ) -> zenoh.Config:
-    """A Zenoh configuration: the given endpoints, multicast scouting off, then ``options`` (path -> value)."""
+    """A Zenoh configuration: the given endpoints, multicast scouting off, then ``options`` (path -> value).
+
+    Listening beyond loopback is refused (``security.ListenError``) unless ``allow_remote`` asks
+    for it and ``options`` demand mutual TLS (robots/ros2/security.py).
+    """
+    from robots.ros2.security import check_listen  # certificates' imports only where sessions open
+
     if mode not in ("peer", "router"):
         raise ValueError(f"Zenoh mode {mode!r}: botstage nodes are 'peer' or 'router'")
+    check_listen(listen, options, allow_remote=allow_remote)
     config = zenoh.Config()
     settings: dict[str, Any] = {
         "mode": mode,
@@ -84,11 +93,12 @@ class SubscriptionStats:
     bad_attachment: int = 0
     bad_cdr: int = 0
     callback_errors: int = 0
+    wrong_key: int = 0  # put on a wildcard that covers the topic: not a publication of it
 
     @property
     def dropped(self) -> int:
         """Samples that never reached the callback."""
-        return self.no_attachment + self.bad_attachment + self.bad_cdr
+        return self.no_attachment + self.bad_attachment + self.bad_cdr + self.wrong_key
 
 
 class _Entity:
@@ -247,6 +257,10 @@ class Subscription(_Entity):
     def _deliver(self, sample: zenoh.Sample) -> None:
         if self._closed:
             return
+        if str(sample.key_expr) != self.key:  # a put on `0/**` would pass an ACL denying `0/cmd_vel/**`
+            self._count(wrong_key=1)
+            log.debug("%s: dropped a sample put on %s, not on the topic's key", self.topic, sample.key_expr)
+            return
         if sample.attachment is None:
             self._count(no_attachment=1)
             log.debug("%s: dropped a sample without an attachment", self.topic)
@@ -286,11 +300,13 @@ class Ros2Node:
         clock: Clock = time.time_ns,
         enclave: str = "/",
         options: Mapping[str, Any] | None = None,
+        allow_remote: bool = False,
     ) -> None:
         """Open the session and declare the node.
 
         ``clock`` gives the source timestamps of publications, in ns since the epoch as ROS 2
-        expects (a simulation passes its own). ``options`` are further Zenoh settings by path.
+        expects (a simulation passes its own). ``options`` are further Zenoh settings by path;
+        ``allow_remote`` lets it listen beyond loopback (with mutual TLS in ``options`` only).
         """
         self.fqn = node_fqn(namespace, name)  # validates both before anything opens
         self.name, self.namespace, self.enclave = name, namespace, enclave
@@ -300,7 +316,7 @@ class Ros2Node:
         self._ids = itertools.count(1)
         self._lock = threading.Lock()
         self._entities: list[_Entity] = []
-        self.session = zenoh.open(session_config(listen, connect, mode, options))
+        self.session = zenoh.open(session_config(listen, connect, mode, options, allow_remote=allow_remote))
         self.zid = str(self.session.zid())
         try:
             self.token = node_token(self.domain_id, self.zid, self.node_id, namespace, name, enclave)

@@ -245,6 +245,10 @@ class ServiceServer(_Entity):
         if self._closed:
             query.drop()
             return None
+        if str(query.key_expr) != self.key:  # a query on `0/**` would pass an ACL denying this service's key
+            log.debug("service %s: dropped a query on %s, not on the service's key", self.topic, query.key_expr)
+            query.drop()
+            return None
         problem = None
         try:
             if query.attachment is None:
