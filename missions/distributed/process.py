@@ -23,13 +23,17 @@ import contextlib
 import logging
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
+import zenoh
+
 from missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
+from missions.distributed.clock import ClockPublisher
 from missions.gallery.service import fill_counters
 from missions.runner import run
 from missions.session.plugins import service_registry
@@ -39,16 +43,21 @@ from robots.backend import BackendKind, BackendOptions, OpenRequest
 from robots.backend_registry import BackendRegistry, open_kind
 from robots.clock import SimClock, WallClock
 from robots.remote import values
-from robots.remote.backend import CONTROL, RemoteRobot, served_devices
+from robots.remote.backend import CONTROL, BackendControl, RemoteRobot
 from robots.remote.devices import DeviceHost
 from robots.remote.ros2_link import open_remote_devices, serve_devices
 from robots.ros2 import types
+from robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
 from robots.ros2.node import Ros2Node
+from robots.ros2.service import ServiceUnavailable
+from skills.outbox.store import DB_NAME
 from skills.registry import Registry
+from skills.remote.actions import SkillActions
 from skills.remote.host import SkillHost
 from skills.remote.protocol import TickRequest
 from skills.remote.proxy import remote_of
 from skills.remote.ros2_link import SkillTickLink, serve_skill_host
+from skills.upload import UploadParams
 
 log = logging.getLogger(__name__)
 
@@ -171,26 +180,50 @@ class RemoteKind(BackendKind):
 
 
 class LockstepObserver:
-    """The mission's side: after each tick, every other process finishes it; at the end, their summaries."""
+    """The mission's side: after each tick, every other process finishes it; at the end, their summaries.
+
+    A process that is gone (killed, cut off: its lockstep server left the graph, or a call in
+    flight ended without an answer) is skipped, said once, and stepped again from the first tick
+    it serves again (a restarted process): the mission goes on without it meanwhile, as its
+    skills' nodes fail with ``remote 'NAME' lost``. One still there that reports an error ends the
+    run, as in one process.
+    """
 
     name = "lockstep"
 
-    def __init__(self, node: Ros2Node, processes: list[str]) -> None:
+    def __init__(self, node: Ros2Node, processes: list[str], say: Callable[[str], None] = print) -> None:
         self.request = types.message_class(f"{LOCKSTEP_TYPE}_Request")
         self.clients = {p: node.client(lockstep_service(p), LOCKSTEP_TYPE) for p in processes}
+        self.say = say
+        self.lost: set[str] = set()
 
     def wait_ready(self, timeout: float) -> None:
         for process, client in self.clients.items():
             if not client.wait_for_service(timeout):
                 raise DeploymentError(f"process {process!r} did not come up within {timeout:g} s")
 
-    def _call(self, process: str, kind: int, session: Any) -> Any:
-        response = self.clients[process].call(
-            self.request(kind=kind, ticks=session.clock.ticks, time=session.clock.now())
-        )
+    def _call(self, process: str, kind: int, session: Any) -> Any | None:
+        """The process's answer, or None when it is gone."""
+        client = self.clients[process]
+        if not client.servers.zids():
+            self._gone(process, session, "its node left the graph")
+            return None
+        try:
+            response = client.call(self.request(kind=kind, ticks=session.clock.ticks, time=session.clock.now()))
+        except ServiceUnavailable:
+            self._gone(process, session, "a call ended unanswered")
+            return None
+        if process in self.lost:
+            self.lost.discard(process)
+            self.say(f"process {process!r} is back: in step again from tick {session.clock.ticks}")
         if response.error:
             raise RuntimeError(f"process {process!r}: {response.error}")
         return response
+
+    def _gone(self, process: str, session: Any, why: str) -> None:
+        if process not in self.lost:
+            self.lost.add(process)
+            self.say(f"process {process!r} lost at tick {session.clock.ticks} ({why}): the mission goes on without it")
 
     def after_tick(self, session: Any) -> None:
         for process in self.clients:
@@ -198,11 +231,60 @@ class LockstepObserver:
 
     def finished(self, session: Any, result: RunResult) -> None:
         for process in self.clients:
-            blocks = values.loads(self._call(process, FINISH, session).summary_json or "{}", "a summary")
+            response = self._call(process, FINISH, session)
+            if response is None:
+                result.summary.setdefault("processes_lost", []).append(process)  # its summary blocks are missing
+                continue
+            blocks = values.loads(response.summary_json or "{}", "a summary")
             for name, block in blocks.items():
                 result.summary[name] = block
                 if name == "upload":
                     fill_counters(result.summary["counters"], block)
+
+
+class MissionLog:
+    """What the mission's process says while it runs: its machine's states, and remotes lost and back.
+
+    A state is said after the tick that entered it (its skill has started by then, here or in
+    the process that runs it). A remote skill's node that fails with ``remote 'NAME' lost`` is
+    said at once, the first time for each loss; the first outcome of one of that process's
+    skills that is not a loss says it serves again.
+    """
+
+    name = "mission_log"
+
+    def __init__(self, hosts: Mapping[str, str], say: Callable[[str], None] = print) -> None:
+        self.hosts = hosts  # skill -> the process that runs it (the remote ones)
+        self.say = say
+        self.down: set[str] = set()
+        self._states: list[str] = []
+
+    def event(self, record: dict[str, Any]) -> None:
+        if record["ev"] == "transition":
+            reason = f" ({record['reason']})" if record["reason"] else ""
+            where = f"{record['machine']}: {record['source'] or '-'} -> {record['dest'] or '-'}"
+            self._states.append(f"t={record['t']:.1f} s {where}{reason}")
+        elif record["ev"] == "skill_outcome":
+            self._outcome(record)
+
+    def _outcome(self, record: dict[str, Any]) -> None:
+        process = self.hosts.get(record["skill"])
+        if process is None:
+            return
+        lost = f"remote {process!r} lost"
+        if record["outcome"] == "failure" and str(record["reason"]).startswith(lost):
+            if process not in self.down:
+                self.down.add(process)
+                self.say(f"{lost}: {record['node']} ({record['skill']}) failed at t={record['t']:.1f} s")
+        elif process in self.down:
+            self.down.discard(process)
+            ended = f"{record['skill']} ended {record['outcome']} at t={record['t']:.1f} s"
+            self.say(f"remote {process!r} serves again: {ended}")
+
+    def after_tick(self, session: Any) -> None:
+        states, self._states = self._states, []
+        for line in states:
+            self.say(line)
 
 
 def _open_robot(role: Role, seed: int | None, clock: SimClock | WallClock) -> tuple[Any, RunSession]:
@@ -252,19 +334,25 @@ def serve_process(
     out.mkdir(parents=True, exist_ok=True)
     stop = stop or threading.Event()
     with contextlib.ExitStack() as stack, Ros2Node(name, listen=listen_on, connect=connect_to, mode=mode) as node:
+        if role.runs_mission:  # Ctrl-C (SIGINT) and SIGTERM end the run as in one process: summary written
+            try:
+                return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready)
+            except KeyboardInterrupt:
+                ready(f"{name}: interrupted before its run began")
+                return 130
         for signum in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(ValueError):  # not the main thread (tests)
                 previous = signal.signal(signum, lambda *_: stop.set())
                 stack.callback(signal.signal, signum, previous)
-        if role.runs_mission:
-            return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready)
-        _serve(role, node, stack, out=out, seed=seed)
+        _serve(role, node, stack, out=out, seed=seed, say=ready)
         ready(f"{name} ready")
         stop.wait()
     return 0
 
 
-def _serve(role: Role, node: Ros2Node, stack: contextlib.ExitStack, *, out: Path, seed: int | None) -> None:
+def _serve(
+    role: Role, node: Ros2Node, stack: contextlib.ExitStack, *, out: Path, seed: int | None, say: Callable[[str], None]
+) -> None:
     checked_mission = role.checked.mission
     assert checked_mission is not None and checked_mission.mission is not None
     mission = checked_mission.mission
@@ -274,7 +362,11 @@ def _serve(role: Role, node: Ros2Node, stack: contextlib.ExitStack, *, out: Path
     if role.backend:
         backend, _ = _open_robot(role, seed, clock)
         stack.callback(backend.close)
-        serve_devices(node, DeviceHost(served_devices(backend, clock)))
+        control = RunControl(backend, clock)
+        devices = DeviceHost({**backend.devices, CONTROL: control})
+        serve_devices(node, devices)
+        watch = MissionWatch(node, role.checked.mission_process, devices, control, say)
+        stack.callback(watch.close)
     elif role.skills_here and role.robot_process:
         _, proxies = open_remote_devices(node, role.robot_process, READY_TIMEOUT_S)
         session = RunSession(role.mission_path, seed=seed)
@@ -288,13 +380,107 @@ def _serve(role: Role, node: Ros2Node, stack: contextlib.ExitStack, *, out: Path
     for service in reversed(services):
         stack.callback(service.close)
     interfaces.pop(CONTROL, None)
+    if "upload" in role.skills_here:
+        _resume_outbox(interfaces.get("uploads"), mission.skill_params.get("upload", {}), out, say)
     reachable = MissionInterfaces(interfaces, node, role.checked.mission_process)
     host = SkillHost(Registry.default(), reachable, role.skills_here)
     stack.callback(host.close)
     following = _following(host, clock)
     serve_skill_host(node, following)
+    stack.callback(SkillActions(node, host, role.skills_here).close)  # for ROS 2 tools; closed before the host
     lockstep = Lockstep(clock, services, session_like)
     node.service(lockstep_service(role.name), LOCKSTEP_TYPE, lockstep.handle)
+
+
+def _resume_outbox(uploads: Any, params: Mapping[str, Any], out: Path, say: Callable[[str], None]) -> None:
+    """Open the run's outbox now if an earlier process left one (a restarted upload process).
+
+    Its photos go on uploading from the next tick, whether or not the mission uploads another;
+    the gallery the run started (``gallery/`` in the run folder) starts again with it. Outboxes
+    of nodes with parameters of their own open at their first call, as in one process.
+    """
+    if uploads is None:
+        return
+    settings = UploadParams.model_validate(dict(params))
+    folder = Path(settings.outbox) if settings.outbox else out / "outbox"
+    if not (folder / DB_NAME).is_file():
+        return
+    outbox = uploads.outbox(settings)
+    say(f"resumed the outbox {folder}: {outbox.resumed} photo(s) still to upload")
+
+
+class RunControl(BackendControl):
+    """The robot's control, noting when the mission's run stopped the robot itself (its normal end)."""
+
+    def __init__(self, backend: Any, clock: SimClock) -> None:
+        super().__init__(backend, clock)
+        self._run_ended = False
+
+    def stop(self) -> None:
+        self._run_ended = True
+        super().stop()
+
+
+def node_token_pattern(domain_id: int, node: str) -> str:
+    """The key expression of every liveliness token of a node named ``node`` (any namespace)."""
+    return f"{ADMIN_SPACE}/{domain_id}/*/*/*/{EntityKind.NODE.value}/*/*/{node}"
+
+
+class MissionWatch:
+    """The robot process's watch on the mission's node: when it leaves the graph, the drive stops.
+
+    In lockstep the robot's world moves only with the mission's ticks, and on hardware the
+    mission's commands would stop: either way nobody sends the zero. The mission's node token
+    (rmw_zenoh's ``NN``) goes when its process dies or is cut off; the drive gets zero velocity
+    then, through the device host (one call at a time with the device calls), and the stop is
+    said once per loss with the delay on this process's monotonic clock. A run that ended and
+    stopped the robot itself is not a loss.
+    """
+
+    def __init__(
+        self, node: Ros2Node, mission: str, devices: DeviceHost, control: RunControl, say: Callable[[str], None]
+    ) -> None:
+        self.mission, self.devices, self.control, self.say = mission, devices, control, say
+        self._zids: set[str] = set()
+        self._lock = threading.Lock()
+        pattern = node_token_pattern(node.domain_id, mission)
+        self._subscriber = node.session.liveliness().declare_subscriber(pattern, self._on_token, history=True)
+
+    def _on_token(self, sample: Any) -> None:
+        """Zenoh's thread: note the change; a loss is handled on a thread of its own."""
+        left = time.monotonic()
+        try:
+            token = parse_token(str(sample.key_expr))
+        except TokenError:
+            return
+        if token.kind is not EntityKind.NODE or token.node_name != self.mission:
+            return
+        alive = sample.kind == zenoh.SampleKind.PUT
+        with self._lock:
+            before = bool(self._zids)
+            (self._zids.add if alive else self._zids.discard)(token.zid)
+            now = bool(self._zids)
+        if now and not before:
+            self.control._run_ended = False  # a (new) mission: its run is on
+        elif before and not now:
+            threading.Thread(target=self._lost, args=(left,), name="mission-watch", daemon=True).start()
+
+    def _lost(self, left: float) -> None:
+        if self.control._run_ended:
+            self.say(f"mission {self.mission!r} left after its run ended")
+            return
+        _, error_type, error = self.devices.answer(CONTROL, "stop", "")
+        stopped = time.monotonic()
+        if error_type:
+            self.say(f"mission {self.mission!r} lost: the drive could not be stopped: {error_type}: {error}")
+            return
+        self.say(
+            f"mission {self.mission!r} lost: drive stopped {(stopped - left) * 1000:.1f} ms after its node left "
+            f"the graph (monotonic {stopped:.6f})"
+        )
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
 
 
 class MissionInterfaces(Mapping[str, Any]):
@@ -371,8 +557,9 @@ def _run_mission(
     if role.robot_process:
         backends.register(RemoteKind(node, role.robot_process, simulated=True), replace=True)
         backend = "remote"
-    lockstep = LockstepObserver(node, role.others)
+    lockstep = LockstepObserver(node, role.others, ready)
     lockstep.wait_ready(READY_TIMEOUT_S)
+    remote = {skill: process for skill, process in role.skill_hosts.items() if process != role.name}
     ready(f"{role.name} runs the mission")
     result = run(
         role.mission_path,
@@ -381,7 +568,7 @@ def _run_mission(
         until=until,
         out=out,
         registry=registry,
-        observers=[ServeMissionInterfaces(node), lockstep],
+        observers=[ServeMissionInterfaces(node), ClockPublisher(node), lockstep, MissionLog(remote, ready)],
         backends=backends,
     )
     ready(f"{role.name}: {result.outcome} ({result.reason})")

@@ -15,11 +15,14 @@ from typing import Any
 from robots.remote.devices import DeviceHost, RemoteDevice, RemoteLost, members_json, members_of, remote_devices
 from robots.ros2 import types
 from robots.ros2.node import Ros2Node
-from robots.ros2.service import ServiceError
+from robots.ros2.service import ServiceError, ServiceUnavailable
 
 CALL_TYPE = "botstage_msgs/srv/DeviceCall"
 DESCRIBE_TYPE = "botstage_msgs/srv/DescribeDevices"
 CALL_TIMEOUT_S = 60.0
+# A process killed mid-call ends the query (no server answered) a few ms before its tokens leave
+# the graph: wait that long for the liveliness to say whether it is gone.
+LOSS_GRACE_S = 0.5
 
 
 def call_service(robot: str) -> str:
@@ -92,6 +95,10 @@ class DeviceCallLink:
             raise RemoteLost(lost_message if lost in done else f"{lost_message}: no answer within {self.timeout:g} s")
         try:
             response = pending.result()
+        except ServiceUnavailable as error:
+            if lost in wait([lost], timeout=LOSS_GRACE_S).done:
+                raise RemoteLost(lost_message) from None
+            raise RemoteLost(f"{lost_message}: {error}") from None
         except ServiceError as error:
             raise RemoteLost(f"{lost_message}: {error}") from None
         return response.result_json, response.error_type, response.error

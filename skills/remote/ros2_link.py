@@ -16,7 +16,7 @@ from typing import Any
 from robots.remote import values
 from robots.ros2 import types
 from robots.ros2.node import Ros2Node
-from robots.ros2.service import ServiceError
+from robots.ros2.service import ServiceError, ServiceUnavailable
 from skills.remote.host import SkillHost
 from skills.remote.protocol import (
     State,
@@ -31,6 +31,9 @@ from skills.remote.proxy import RemoteLost
 
 SERVICE_TYPE = "botstage_msgs/srv/SkillTick"
 TICK_TIMEOUT_S = 120.0  # a step that waits for a recogniser on a loaded machine; loss is seen sooner
+# A process killed mid-call ends the query (no server answered) a few ms before its tokens leave
+# the graph: wait that long for the liveliness to say whether it is gone.
+LOSS_GRACE_S = 0.5
 
 
 def service_name(process: str) -> str:
@@ -90,6 +93,10 @@ class SkillTickLink:
             raise RemoteLost(lost_message if lost in done else f"{lost_message}: no answer within {self.timeout:g} s")
         try:
             return reply_of(call.result())
+        except ServiceUnavailable as error:
+            if lost in wait([lost], timeout=LOSS_GRACE_S).done:
+                raise RemoteLost(lost_message) from None
+            raise RemoteLost(f"{lost_message}: {error}") from None
         except ServiceError as error:
             raise RemoteLost(f"{lost_message}: {error}") from None
         except values.ValueCodecError as error:
