@@ -123,3 +123,23 @@ def bench_validate(quick: bool = typer.Option(False, help="2,000 nodes, one repe
     slow = bench.missed(bench.main(quick=quick))
     if slow and not quick:
         _stderr([f"over target: {', '.join(slow)}"])
+
+
+@bench_app.command("zenoh")
+def bench_zenoh(
+    quick: bool = typer.Option(False, help="fewer calls, shorter streams, 30 s of mission: a smoke test"),
+    calls: int | None = typer.Option(None, min=1, help="skill calls timed each way (default 2000; 200 with --quick)"),
+    seconds: float | None = typer.Option(
+        None, min=0.1, help="each stream window's length in s (default 10; 2 with --quick)"
+    ),
+    seed: int = typer.Option(1, min=0, help="the entertainer's seed, the same for both runs"),
+    until: float | None = typer.Option(
+        None, min=0.1, help="the entertainer's mission time in s (default: the whole mission; 30 with --quick)"
+    ),
+) -> None:
+    """Remote skill calls and sensor streams against raw Zenoh; the entertainer on five processes against one."""
+    from missions.bench import bench_zenoh as bench
+
+    missed = bench.missed(bench.main(quick=quick, calls=calls, seconds=seconds, seed=seed, until=until))
+    if missed and not quick:
+        _stderr([f"target missed: {', '.join(missed)}"])
