@@ -10,9 +10,10 @@ one's node and serves, on that one Zenoh session, both sides of every comparison
   ``SkillTick`` service call, simulated clock as in lockstep). Baseline: a raw ``get`` (same
   target and consolidation as the service client) with a request of the same byte size, to a
   raw queryable that answers at once with a reply of the SkillTick response's byte size; the
-  first reply ends the wait. Warmed up first; the two are timed in interleaved blocks, and the
-  skill run in this process (no network) is timed for scale. Targets: p99 <= 5 ms, ratio of
-  medians <= 1.5.
+  first reply ends the wait. Warmed up first; timed in interleaved blocks. To show where the
+  difference goes, the same request is also sent to a SkillTick service that answers at once
+  (botstage's service layer alone), and the skill is run in this process (no network).
+  Targets: p99 <= 5 ms, ratio of medians <= 1.5.
 - **stream_scan**, **stream_image**: 181-beam ``sensor_msgs/LaserScan`` at 10 Hz and 640x480
   ``bgr8`` ``sensor_msgs/Image`` at 30 Hz, from a ``Ros2Node`` publisher here to a subscription
   there, with ROS's sensor-data QoS (best effort, depth 5) as a robot process publishes them.

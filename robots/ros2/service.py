@@ -353,7 +353,7 @@ class ServiceClient(_Entity):
         try:
             self._session.get(
                 self.key,
-                zenoh.handlers.Callback(lambda reply: self._on_reply(call, reply), lambda: self._on_end(call)),
+                zenoh.handlers.Callback(lambda r: self._on_reply(call, r), lambda: self._on_end(call), indirect=False),
                 payload=payload,
                 attachment=attachments.encode(sent),
                 target=zenoh.QueryTarget.ALL_COMPLETE,
