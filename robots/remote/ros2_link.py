@@ -8,21 +8,17 @@ service call. A robot process that dies or is cut off ends the call in flight at
 
 from __future__ import annotations
 
-import threading
-from concurrent.futures import FIRST_COMPLETED, Future, wait
 from typing import Any
 
 from robots.remote.devices import DeviceHost, RemoteDevice, RemoteLost, members_json, members_of, remote_devices
+from robots.remote.watched import WatchedClient
 from robots.ros2 import types
 from robots.ros2.node import Ros2Node
-from robots.ros2.service import ServiceError, ServiceUnavailable
+from robots.ros2.service import ServiceError
 
 CALL_TYPE = "botstage_msgs/srv/DeviceCall"
 DESCRIBE_TYPE = "botstage_msgs/srv/DescribeDevices"
 CALL_TIMEOUT_S = 60.0
-# A process killed mid-call ends the query (no server answered) a few ms before its tokens leave
-# the graph: wait that long for the liveliness to say whether it is gone.
-LOSS_GRACE_S = 0.5
 
 
 def call_service(robot: str) -> str:
@@ -55,20 +51,9 @@ class DeviceCallLink:
 
     def __init__(self, node: Ros2Node, robot: str, timeout: float = CALL_TIMEOUT_S) -> None:
         self.remote = robot
-        self.timeout = timeout
-        self._call = node.client(call_service(robot), CALL_TYPE)
+        self._call = WatchedClient(node.client(call_service(robot), CALL_TYPE), robot, timeout)
         self._describe = node.client(describe_service(robot), DESCRIBE_TYPE)
         self._request = types.message_class(f"{CALL_TYPE}_Request")
-        self._lock = threading.Lock()
-        self._lost: Future[str] = Future()
-        self._call.servers.listen(self._on_change)
-
-    def _on_change(self, zid: str, alive: bool) -> None:
-        if not alive and not self._call.servers.zids():
-            with self._lock:
-                lost = self._lost
-            if not lost.done():
-                lost.set_result(zid)
 
     def describe(self, timeout: float) -> dict[str, Any]:
         """The robot's devices and members, waiting up to ``timeout`` s for the robot to serve them."""
@@ -81,26 +66,7 @@ class DeviceCallLink:
             raise RemoteLost(f"robot process {self.remote!r}: {error}") from None
 
     def call(self, interface: str, member: str, args_json: str) -> tuple[str, str, str]:
-        lost_message = f"remote {self.remote!r} lost"
-        if not self._call.servers.zids():
-            raise RemoteLost(lost_message)
-        with self._lock:
-            if self._lost.done():
-                self._lost = Future()
-            lost = self._lost
-        pending = self._call.call_async(self._request(interface=interface, member=member, args_json=args_json))
-        done, _ = wait([pending, lost], timeout=self.timeout, return_when=FIRST_COMPLETED)
-        if pending not in done:
-            pending.cancel()
-            raise RemoteLost(lost_message if lost in done else f"{lost_message}: no answer within {self.timeout:g} s")
-        try:
-            response = pending.result()
-        except ServiceUnavailable as error:
-            if lost in wait([lost], timeout=LOSS_GRACE_S).done:
-                raise RemoteLost(lost_message) from None
-            raise RemoteLost(f"{lost_message}: {error}") from None
-        except ServiceError as error:
-            raise RemoteLost(f"{lost_message}: {error}") from None
+        response = self._call.call(self._request(interface=interface, member=member, args_json=args_json))
         return response.result_json, response.error_type, response.error
 
     def close(self) -> None:

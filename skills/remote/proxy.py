@@ -15,13 +15,10 @@ import uuid
 from typing import Any, Protocol
 
 from robots.remote import values
+from robots.remote.devices import RemoteLost
 from skills.base import FAILURE, Outcome, Skill, SkillContext, SkillRun
 from skills.expression import ExpressionError, compile_expression
 from skills.remote.protocol import Call, State, Step, TickReply, TickRequest
-
-
-class RemoteLost(ConnectionError):
-    """The remote process is gone (or never answered): the reason names it."""
 
 
 class SkillLink(Protocol):
