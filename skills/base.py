@@ -189,6 +189,11 @@ class SkillLogger:
         if self.sink is not None and threading.get_ident() == self._owner:
             self.sink(self.node, logging.getLevelName(level).lower(), message)
 
+    def adopt(self) -> None:
+        """Make the calling thread the one whose lines reach ``sink`` (a remote host steps a call
+        on whichever thread brings its request)."""
+        self._owner = threading.get_ident()
+
     def debug(self, message: str) -> None:
         self.log(logging.DEBUG, message)
 

@@ -35,6 +35,12 @@ def process(
     until: float | None = typer.Option(None, help="stop the mission after this many seconds of mission time"),
     connect: list[str] = typer.Option([], "--connect", metavar="ENDPOINT", help=CONNECT_HELP),
     listen: list[str] = typer.Option([], "--listen", metavar="ENDPOINT", help="where this process listens"),
+    certs: Path | None = typer.Option(
+        None,
+        metavar="DIR",
+        help="speak only mutual TLS with this process's certificate (its folder, or the one `botstage certs` "
+        "wrote) under the deployment's access policy; then it may listen beyond loopback (--listen tls/0.0.0.0:7447)",
+    ),
 ) -> None:
     """Run one process of a deployment (its robot, skills or mission) and serve it until Ctrl-C."""
     from missions.distributed.process import DeploymentError, serve_process
@@ -50,10 +56,21 @@ def process(
             connect=connect,
             listen=listen or None,
             ready=lambda line: print(line, flush=True),
+            certs=certs,
         )
     except DeploymentError as error:
         raise _fail(str(error), 2) from None
     raise typer.Exit(code)
+
+
+def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
+    """``folder`` with a certificate for each process (loopback hosts), made if missing; its authority kept."""
+    from robots.ros2.certs import Credentials, make_certificates
+
+    missing = [name for name in processes if Credentials.in_folder(folder / name).missing()]
+    if missing:
+        make_certificates(folder, missing)
+    return folder
 
 
 def free_port() -> int:
@@ -68,6 +85,10 @@ def up(
     seed: int | None = typer.Option(None, help="the mission's seed (default: the mission's)", callback=NON_NEGATIVE),
     until: float | None = typer.Option(None, help="stop the mission after this many seconds of mission time"),
     port: int = typer.Option(0, help="the router's loopback port (0: a free one)", min=0, max=65535),
+    secure: bool = typer.Option(
+        False,
+        help="mutual TLS and the deployment's access policy, certificates made in OUT/certs (kept for next runs)",
+    ),
 ) -> None:
     """Start every process of a deployment on this machine (loopback) and stop them together."""
     from missions.deployment import check_deployment
@@ -77,8 +98,10 @@ def up(
     checked = check_deployment(deployment)
     assert checked.deployment is not None
     router = checked.router
-    endpoint = f"tcp/127.0.0.1:{port or free_port()}"
+    endpoint = f"{'tls' if secure else 'tcp'}/127.0.0.1:{port or free_port()}"
     base = [sys.executable, "-m", "missions.cli", "serve", "process", str(deployment), "--out", str(out)]
+    if secure:
+        base += ["--certs", str(_loopback_certificates(out / "certs", list(checked.deployment.processes)))]
     if seed is not None:
         base += ["--seed", str(seed)]
     if until is not None:

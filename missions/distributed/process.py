@@ -25,6 +25,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -34,6 +35,7 @@ import zenoh
 
 from missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
 from missions.distributed.clock import ClockPublisher
+from missions.distributed.security import SecurityError, secured, session_options
 from missions.gallery.service import fill_counters
 from missions.runner import run
 from missions.session.plugins import service_registry
@@ -120,18 +122,19 @@ class Role:
         )
 
 
-def endpoints(role: Role, connect: list[str], listen: list[str] | None) -> tuple[list[str], list[str], str]:
-    """Where the process listens, what it connects to, and its Zenoh mode."""
+def endpoints(
+    role: Role, connect: list[str], listen: list[str] | None, secure: bool = False
+) -> tuple[list[str], list[str], str]:
+    """Where the process listens, what it connects to, and its Zenoh mode (TLS ones when ``secure``)."""
     deployment = role.checked.deployment
     assert deployment is not None
     process = deployment.processes[role.name]
     router = role.checked.router == role.name
     heard = listen if listen is not None else (process.listen or ([ROUTER_ENDPOINT] if router else []))
-    return (
-        heard or ["tcp/127.0.0.1:0"],
-        ([] if router else connect or [ROUTER_ENDPOINT]),
-        "router" if router else "peer",
-    )
+    heard, reached = heard or ["tcp/127.0.0.1:0"], ([] if router else connect or [ROUTER_ENDPOINT])
+    if secure:
+        heard, reached = secured(heard, listen or []), secured(reached, connect)
+    return heard, reached, "router" if router else "peer"
 
 
 class Lockstep:
@@ -202,14 +205,20 @@ class LockstepObserver:
             if not client.wait_for_service(timeout):
                 raise DeploymentError(f"process {process!r} did not come up within {timeout:g} s")
 
-    def _call(self, process: str, kind: int, session: Any) -> Any | None:
-        """The process's answer, or None when it is gone."""
+    def _send(self, process: str, kind: int, session: Any) -> Future | None:
+        """The call to the process, in flight; None when it is gone."""
         client = self.clients[process]
         if not client.servers.zids():
             self._gone(process, session, "its node left the graph")
             return None
+        return client.call_async(self.request(kind=kind, ticks=session.clock.ticks, time=session.clock.now()))
+
+    def _answer(self, process: str, call: Future | None, session: Any) -> Any | None:
+        """The process's answer to ``call``, or None when it is gone."""
+        if call is None:
+            return None
         try:
-            response = client.call(self.request(kind=kind, ticks=session.clock.ticks, time=session.clock.now()))
+            response = call.result()
         except ServiceUnavailable:
             self._gone(process, session, "a call ended unanswered")
             return None
@@ -220,18 +229,21 @@ class LockstepObserver:
             raise RuntimeError(f"process {process!r}: {response.error}")
         return response
 
+    def _all(self, kind: int, session: Any) -> dict[str, Any | None]:
+        """Every process's answer, asked of all at once (a tick waits for the slowest, not the sum)."""
+        calls = {process: self._send(process, kind, session) for process in self.clients}
+        return {process: self._answer(process, call, session) for process, call in calls.items()}
+
     def _gone(self, process: str, session: Any, why: str) -> None:
         if process not in self.lost:
             self.lost.add(process)
             self.say(f"process {process!r} lost at tick {session.clock.ticks} ({why}): the mission goes on without it")
 
     def after_tick(self, session: Any) -> None:
-        for process in self.clients:
-            self._call(process, STEP, session)
+        self._all(STEP, session)
 
     def finished(self, session: Any, result: RunResult) -> None:
-        for process in self.clients:
-            response = self._call(process, FINISH, session)
+        for process, response in self._all(FINISH, session).items():
             if response is None:
                 result.summary.setdefault("processes_lost", []).append(process)  # its summary blocks are missing
                 continue
@@ -327,13 +339,31 @@ def serve_process(
     listen: list[str] | None = None,
     ready: Callable[[str], None] = print,
     stop: threading.Event | None = None,
+    certs: Path | None = None,
 ) -> int:
-    """Run process ``name`` of the deployment at ``path`` until it is stopped (or its mission ends)."""
+    """Run process ``name`` of the deployment at ``path`` until it is stopped (or its mission ends).
+
+    With ``certs`` (missions/distributed/security.py) it speaks only mutual TLS under the
+    deployment's access policy, and may listen beyond loopback.
+    """
     role = Role.of(path, name)
-    listen_on, connect_to, mode = endpoints(role, connect or [], listen)
+    try:
+        listen_on, connect_to, mode = endpoints(role, connect or [], listen, secure=certs is not None)
+        options = session_options(role.checked, name, certs) if certs is not None else None
+    except SecurityError as error:
+        raise DeploymentError(str(error)) from None
     out.mkdir(parents=True, exist_ok=True)
     stop = stop or threading.Event()
-    with contextlib.ExitStack() as stack, Ros2Node(name, listen=listen_on, connect=connect_to, mode=mode) as node:
+    node = Ros2Node(
+        name,
+        domain_id=role.checked.deployment.domain_id if role.checked.deployment else 0,
+        listen=listen_on,
+        connect=connect_to,
+        mode=mode,
+        options=options,
+        allow_remote=options is not None,
+    )
+    with contextlib.ExitStack() as stack, node:
         if role.runs_mission:  # Ctrl-C (SIGINT) and SIGTERM end the run as in one process: summary written
             try:
                 return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready)

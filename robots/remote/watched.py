@@ -8,11 +8,12 @@ the response or raises ``RemoteLost`` saying ``remote 'NAME' lost`` as soon as t
 from __future__ import annotations
 
 import threading
-from concurrent.futures import FIRST_COMPLETED, Future, wait
 from typing import Any
 
+import zenoh
+
 from robots.remote.devices import RemoteLost
-from robots.ros2.service import ServiceClient, ServiceError, ServiceUnavailable
+from robots.ros2.service import ServiceCancelled, ServiceClient, ServiceError, ServiceTimeout, ServiceUnavailable
 
 # A process killed mid-call ends the query (no server answered) a few ms before its tokens leave
 # the graph: wait that long for the liveliness to say whether it is gone.
@@ -25,15 +26,19 @@ class WatchedClient:
     def __init__(self, client: ServiceClient, remote: str, timeout: float) -> None:
         self.client, self.remote, self.timeout = client, remote, timeout
         self._lock = threading.Lock()
-        self._lost: Future[str] = Future()
+        self._lost = threading.Event()
+        self._waiting: set[zenoh.CancellationToken] = set()
         client.servers.listen(self._on_change)
 
     def _on_change(self, zid: str, alive: bool) -> None:
-        if not alive and not self.client.servers.zids():
-            with self._lock:
-                lost = self._lost
-            if not lost.done():
-                lost.set_result(zid)
+        """Zenoh's thread: the last server left, so end the calls waiting on it."""
+        if alive or self.client.servers.zids():
+            return
+        with self._lock:
+            self._lost.set()
+            waiting = list(self._waiting)
+        if waiting:  # cancelling may wait for Zenoh's threads: not on one of them
+            threading.Thread(target=lambda: [token.cancel() for token in waiting], daemon=True).start()
 
     def wait_for_service(self, timeout: float | None = None) -> bool:
         return self.client.wait_for_service(timeout)
@@ -41,25 +46,27 @@ class WatchedClient:
     def call(self, request: Any) -> Any:
         """The response, or ``RemoteLost`` when the process is gone or silent past the timeout."""
         lost_message = f"remote {self.remote!r} lost"
-        if not self.client.servers.zids():
-            raise RemoteLost(lost_message)
-        with self._lock:
-            if self._lost.done():
-                self._lost = Future()  # it came back since: watch afresh
-            lost = self._lost
-        pending = self.client.call_async(request)
-        done, _ = wait([pending, lost], timeout=self.timeout, return_when=FIRST_COMPLETED)
-        if pending not in done:
-            pending.cancel()
-            raise RemoteLost(lost_message if lost in done else f"{lost_message}: no answer within {self.timeout:g} s")
+        token = zenoh.CancellationToken()
+        with self._lock:  # watched from now on: a loss after this cancels the token
+            self._lost.clear()
+            self._waiting.add(token)
         try:
-            return pending.result()
+            if not self.client.servers.zids():
+                raise RemoteLost(lost_message)
+            return self.client.call(request, self.timeout, cancel=token)
+        except ServiceCancelled:
+            raise RemoteLost(lost_message) from None
+        except ServiceTimeout:
+            raise RemoteLost(f"{lost_message}: no answer within {self.timeout:g} s") from None
         except ServiceUnavailable as error:
-            if lost in wait([lost], timeout=LOSS_GRACE_S).done:
+            if self._lost.wait(LOSS_GRACE_S):
                 raise RemoteLost(lost_message) from None
             raise RemoteLost(f"{lost_message}: {error}") from None
         except ServiceError as error:
             raise RemoteLost(f"{lost_message}: {error}") from None
+        finally:
+            with self._lock:
+                self._waiting.discard(token)
 
     def close(self) -> None:
         self.client.close()

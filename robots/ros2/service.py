@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, InvalidStateError
@@ -69,6 +70,13 @@ class ServiceUnavailable(ServiceError):
 
 class ServiceTimeout(ServiceError, TimeoutError):
     """No response within the caller's timeout."""
+
+
+class ServiceCancelled(ServiceError):
+    """The caller's cancellation token ended the wait (or the client closed)."""
+
+
+_UNMATCHED = object()  # a reply for another call: keep waiting
 
 
 def _settle(future: Future, result: Any = None, error: BaseException | None = None) -> bool:
@@ -318,6 +326,7 @@ class ServiceClient(_Entity):
         self._sequence = 0
         self._calls: dict[int, Call] = {}
         self._calls_lock = threading.Lock()
+        self._waiting: set[zenoh.CancellationToken] = set()  # synchronous calls in flight
         self.unmatched_replies = 0  # replies for no call of ours (another client's GID, an unknown sequence)
         dds_type, type_hash = types.dds_type_name(type_name), types.type_hash(type_name)
         self.servers = ServerWatch(node.session, node.domain_id, self.topic, dds_type, type_hash)
@@ -328,15 +337,78 @@ class ServiceClient(_Entity):
         """Whether a server of this service is in the graph, waiting up to ``timeout`` s for one."""
         return self.servers.wait(timeout)
 
-    def call(self, request: Any, timeout: float | None = None) -> Any:
-        """The response to ``request``; ServiceTimeout after ``timeout`` s, ServiceError and subclasses otherwise."""
-        future = self.call_async(request)
+    def call(self, request: Any, timeout: float | None = None, cancel: zenoh.CancellationToken | None = None) -> Any:
+        """The response to ``request``; ServiceTimeout after ``timeout`` s, ServiceError and subclasses otherwise.
+
+        The reply wakes this thread straight from Zenoh's channel (no callback thread in between:
+        a tenth of a millisecond per call on loopback). ``cancel``, cancelled from another
+        thread, ends the wait with ServiceCancelled.
+        """
+        payload = types.serialize(request, self.service.request)
+        token = cancel or zenoh.CancellationToken()
+        with self._lock:
+            if self._closed:
+                raise RuntimeError(f"client of {self.topic} is closed")
+            self._sequence += 1
+            sequence = self._sequence
+            sent = Attachment(sequence, int(self._clock()), self.gid)
+            self._waiting.add(token)
+        began = time.monotonic()
         try:
-            return future.result(timeout)
-        except TimeoutError:
-            if future.cancel():
-                raise ServiceTimeout(f"service {self.topic}: no response within {timeout} s") from None
-            return future.result()  # answered in the meantime
+            replies = self._session.get(
+                self.key,
+                payload=payload,
+                attachment=attachments.encode(sent),
+                target=zenoh.QueryTarget.ALL_COMPLETE,
+                consolidation=zenoh.ConsolidationMode.NONE,
+                timeout=QUERY_TIMEOUT_S if timeout is None else timeout,
+                cancellation_token=token,
+            )
+            replied = timed_out = False
+            for reply in replies:
+                if reply.err is not None and reply.replier_id is None:  # Zenoh's own: the query timed out
+                    timed_out = True
+                    continue
+                replied = True
+                answer = self._answer(reply, sequence)
+                if answer is not _UNMATCHED:
+                    return answer
+        except zenoh.ZError as error:
+            raise ServiceError(f"service {self.topic}: cannot send the request: {error}") from None
+        finally:
+            with self._lock:
+                self._waiting.discard(token)
+        if token.is_cancelled:
+            raise ServiceCancelled(f"service {self.topic}: the call was cancelled")
+        if timeout is not None and (timed_out or time.monotonic() - began >= timeout):
+            raise ServiceTimeout(f"service {self.topic}: no response within {timeout} s")
+        raise ServiceUnavailable(
+            f"service {self.topic} ({self.service.name}): no server answered"
+            if not replied
+            else f"service {self.topic}: the reply could not be used"
+        )
+
+    def _answer(self, reply: zenoh.Reply, sequence: int) -> Any:
+        """The response in a reply to call ``sequence``; ``_UNMATCHED`` for a reply to drop; raises ServiceError."""
+        if reply.err is not None:
+            reason = reply.err.payload.to_bytes().decode("utf-8", "replace")
+            raise ServiceError(reason or f"service {self.topic}: the server replied an error")
+        sample = reply.ok
+        try:
+            if sample is None or sample.attachment is None:
+                raise AttachmentError("a reply without an attachment")
+            answer = attachments.decode(sample.attachment.to_bytes())
+        except AttachmentError as error:
+            log.debug("client of %s: dropped a reply: %s", self.topic, error)
+            return _UNMATCHED
+        if answer.gid != self.gid or answer.sequence != sequence:
+            with self._calls_lock:
+                self.unmatched_replies += 1
+            return _UNMATCHED
+        try:
+            return types.deserialize(sample.payload.to_bytes(), self.service.response)
+        except types.CdrError as error:
+            raise ServiceError(f"service {self.topic}: bad response: {error}") from None
 
     def call_async(self, request: Any) -> Call:
         """Send ``request`` now; the future holds the response or the ServiceError. Cancelling it abandons the call."""
@@ -425,6 +497,10 @@ class ServiceClient(_Entity):
             calls = list(self._calls.values())
         for call in calls:
             _settle(call, error=ServiceError(f"client of {self.topic} closed"))
+        with self._lock:
+            waiting = list(self._waiting)
+        for token in waiting:
+            token.cancel()
 
 
 def server_token_pattern(domain_id: int, service: str, dds_type: str, type_hash: str) -> str:

@@ -1,10 +1,12 @@
 """The serving side of remote skills: runs each call of the real skill as the mission asks.
 
-Every step of every call runs on the host's one thread, in the order requests arrive, so a
-skill's log lines reach the reply (``SkillLogger`` keeps trace lines to its owner thread) and two
-calls never race over a device. A call's clock reads the time of the request that drives it; on
-a simulated clock the host waits for the work a step submitted before it answers, as the engine
-does after each tick, so the skill sees that work done at the same tick as in a local run.
+Steps run one at a time, in the order requests take the host's lock, on the thread that brings
+each request (a service's or an action server's worker): no thread hand-off per tick, and two
+calls never race over a device. The run's logger sends to the reply the lines its step logs on
+that thread (``SkillLogger.adopt``), as the engine's thread does locally. A call's clock reads
+the time of the request that drives it; on a simulated clock the host waits for the work a step
+submitted before it answers, as the engine does after each tick, so the skill sees that work
+done at the same tick as in a local run.
 
 A call ends when its skill ends or is cancelled; a host keeps at most ``max_calls`` at once and
 cancels them all when it closes (their ``finally`` blocks stop what they started).
@@ -13,11 +15,9 @@ cancels them all when it closes (their ``finally`` blocks stop what they started
 from __future__ import annotations
 
 import logging
-import queue
 import random
 import threading
 from collections.abc import Callable, Iterable, Mapping
-from concurrent.futures import Future
 from typing import Any
 
 from skills.base import FAILURE, Outcome, SkillContext, SkillLogger
@@ -90,17 +90,20 @@ class _Run:
 
     def __init__(self, host: SkillHost, request: TickRequest, call: Call) -> None:
         skill = host.registry.get(call.skill)(call.params)
-        self.rng = random.Random()
         self.rng_state = call.rng_state
-        if call.rng_state is not None:
-            self.rng.setstate(call.rng_state)  # the node's generator where the mission's left it
+        if call.rng_state is None:
+            self.rng = random.Random()
+        else:  # the node's generator where the mission's left it (a fixed seed: cheaper than the OS's entropy)
+            self.rng = random.Random(0)
+            self.rng.setstate(call.rng_state)
         self.events: list[tuple[str, str, Any]] = []
         self.clock = DrivenClock(request)
         self.view = KeyView(call.node, call.reads, call.writes, self._record)
+        self.logger = SkillLogger(call.node, sink=self._log)
         ctx = SkillContext(
             clock=self.clock,
             params=skill.params,
-            logger=SkillLogger(call.node, sink=self._log),
+            logger=self.logger,
             blackboard=self.view,
             workers=host.workers,
             interfaces=host.interfaces,
@@ -127,7 +130,7 @@ class _Run:
 
 
 class SkillHost:
-    """Runs calls of the skills it serves, one step per request, on its own thread."""
+    """Runs calls of the skills it serves, one step per request, one step at a time."""
 
     def __init__(
         self,
@@ -146,57 +149,44 @@ class SkillHost:
         self.workers = workers or Workers(name="botstage-remote-worker")
         self.max_calls = max_calls
         self._runs: dict[str, _Run] = {}
-        self._queue: queue.SimpleQueue[tuple[TickRequest, Future[TickReply]] | None] = queue.SimpleQueue()
+        self._lock = threading.Lock()
         self._closed = False
-        self._thread = threading.Thread(target=self._serve, name="botstage-skill-host", daemon=True)
-        self._thread.start()
 
     @property
     def calls(self) -> int:
         """Calls running now."""
         return len(self._runs)
 
-    def submit(self, request: TickRequest) -> Future[TickReply]:
-        """Queue a request for the host's thread; the future holds the reply."""
-        future: Future[TickReply] = Future()
-        if self._closed:
-            future.set_result(TickReply(State.UNKNOWN, reason="the skill host is closed"))
-        else:
-            self._queue.put((request, future))
-        return future
-
     def handle(self, request: TickRequest, timeout: float | None = None) -> TickReply:
-        """Run one request and wait for its reply (from any thread)."""
-        return self.submit(request).result(timeout)
+        """Run one request on this thread once the step before it is done; TimeoutError after ``timeout`` s."""
+        if not self._lock.acquire(timeout=-1 if timeout is None else timeout):
+            raise TimeoutError(f"the skill host was busy for {timeout} s")
+        try:
+            if self._closed:
+                return TickReply(State.UNKNOWN, reason="the skill host is closed")
+            return self._step_safely(request)
+        finally:
+            self._lock.release()
 
     def close(self) -> None:
-        """Cancel every call (their cleanup runs) and stop the thread."""
-        if self._closed:
-            return
-        self._closed = True
-        self._queue.put(None)
-        self._thread.join()
+        """Cancel every call (their cleanup runs) once the step in progress is done."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            for call_id in list(self._runs):
+                self._cancel(call_id, "the skill host closed")
         self.workers.shutdown(wait_for_work=False)
 
-    # -- the host's thread ------------------------------------------------------------------
+    # -- under the lock ---------------------------------------------------------------------
 
-    def _serve(self) -> None:
-        while True:
-            item = self._queue.get()
-            if item is None:
-                break
-            request, future = item
-            if not future.set_running_or_notify_cancel():
-                continue
-            try:
-                future.set_result(self._step(request))
-            except Exception as error:  # a bug of ours: the call fails with it, the host goes on
-                log.exception("skill host: request %s failed", request.call_id)
-                self._runs.pop(request.call_id, None)
-                reason = f"the remote host failed: {describe_exception(error)}"
-                future.set_result(TickReply(State.ENDED, FAILURE, reason))
-        for call_id in list(self._runs):
-            self._cancel(call_id, "the skill host closed")
+    def _step_safely(self, request: TickRequest) -> TickReply:
+        try:
+            return self._step(request)
+        except Exception as error:  # a bug of ours: the call fails with it, the host goes on
+            log.exception("skill host: request %s failed", request.call_id)
+            self._runs.pop(request.call_id, None)
+            return TickReply(State.ENDED, FAILURE, f"the remote host failed: {describe_exception(error)}")
 
     def _step(self, request: TickRequest) -> TickReply:
         if request.step is Step.START:
@@ -206,6 +196,7 @@ class SkillHost:
             return TickReply(State.UNKNOWN, reason=f"no call {request.call_id} here (the host restarted?)")
         run.clock.follow(request)
         run.view.values = dict(request.blackboard)
+        run.logger.adopt()
         if request.step is Step.CANCEL:
             problem = self._cancel(request.call_id, request.reason)
             return TickReply(State.CANCELLED, reason=problem or "", events=run.take_events(), rng_state=run.drawn())

@@ -12,7 +12,10 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
+import numpy as np
+
 from robots.remote import values
+from skills.remote import rng
 
 
 class Step(IntEnum):
@@ -49,7 +52,6 @@ class Call:
             {
                 "inputs": self.inputs,
                 "params": self.params,
-                "rng": self.rng_state,
                 "reads": sorted(self.reads),
                 "writes": sorted(self.writes),
             },
@@ -57,7 +59,7 @@ class Call:
         )
 
     @classmethod
-    def from_json(cls, skill: str, node: str, text: str) -> Call:
+    def from_json(cls, skill: str, node: str, text: str, rng_state: tuple[Any, ...] | None = None) -> Call:
         data = values.loads(text, "the call")
         try:
             return cls(
@@ -65,7 +67,7 @@ class Call:
                 node,
                 dict(data["inputs"]),
                 dict(data["params"]),
-                _state(data["rng"]),
+                rng_state,
                 frozenset(data["reads"]),
                 frozenset(data["writes"]),
             )
@@ -73,12 +75,20 @@ class Call:
             raise values.ValueCodecError(f"the call: missing or malformed field {error}") from None
 
 
-def _state(value: Any) -> tuple[Any, ...] | None:
-    if value is None:
+def _packed(state: tuple[Any, ...] | None) -> np.ndarray:
+    """The state as a ``uint8[]`` field holds it (rosbags takes numpy arrays); empty for none."""
+    return np.frombuffer(b"" if state is None else rng.pack(state), np.uint8)
+
+
+def _unpacked(data: Any) -> tuple[Any, ...] | None:
+    """The state from a message's ``uint8[]`` (a numpy array) or bytes; None when empty."""
+    packed = bytes(data)
+    if not packed:
         return None
-    if not isinstance(value, tuple):
-        raise TypeError("rng")
-    return value
+    try:
+        return rng.unpack(packed)
+    except ValueError as error:
+        raise values.ValueCodecError(f"the random state: {error}") from None
 
 
 @dataclass(frozen=True)
@@ -118,6 +128,7 @@ def request_fields(request: TickRequest) -> dict[str, Any]:
         "skill": call.skill if call else "",
         "node": call.node if call else "",
         "call_json": call.to_json() if call else "",
+        "rng": _packed(call.rng_state if call else None),
         "blackboard_json": values.dumps(request.blackboard, "the blackboard"),
         "reason": request.reason,
     }
@@ -131,7 +142,7 @@ def request_of(fields: Any) -> TickRequest:
     except ValueError:
         raise values.ValueCodecError(f"step {get('step')!r} is not one of {[s.name for s in Step]}") from None
     call_json = str(get("call_json"))
-    call = Call.from_json(str(get("skill")), str(get("node")), call_json) if call_json else None
+    call = Call.from_json(str(get("skill")), str(get("node")), call_json, _unpacked(get("rng"))) if call_json else None
     board = values.loads(str(get("blackboard_json")), "the blackboard") if get("blackboard_json") else {}
     if not isinstance(board, dict):
         raise values.ValueCodecError("the blackboard: not a mapping of keys to values")
@@ -156,7 +167,7 @@ def reply_fields(reply: TickReply) -> dict[str, Any]:
         "reason": reply.reason,
         "outputs_json": values.dumps(reply.outputs, "the outputs") if reply.outputs else "",
         "events_json": values.dumps(list(reply.events), "the events") if reply.events else "",
-        "rng_json": values.dumps(reply.rng_state, "the random state") if reply.rng_state is not None else "",
+        "rng": _packed(reply.rng_state),
     }
 
 
@@ -169,10 +180,10 @@ def reply_of(fields: Any) -> TickReply:
         raise values.ValueCodecError(f"state {get('state')!r} is not one of {[s.name for s in State]}") from None
     outputs = values.loads(get("outputs_json"), "the outputs") if get("outputs_json") else {}
     events = values.loads(get("events_json"), "the events") if get("events_json") else []
-    rng = values.loads(get("rng_json"), "the random state") if get("rng_json") else None
+    drawn = _unpacked(get("rng"))
     if not isinstance(outputs, dict) or not isinstance(events, list):
         raise values.ValueCodecError("a reply's outputs must be a mapping and its events a list")
-    return TickReply(state, str(get("outcome")), str(get("reason")), outputs, tuple(tuple(e) for e in events), rng)
+    return TickReply(state, str(get("outcome")), str(get("reason")), outputs, tuple(tuple(e) for e in events), drawn)
 
 
 class DirectLink:
