@@ -22,7 +22,6 @@ import json
 import re
 import signal
 import sqlite3
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -32,14 +31,14 @@ from typing import Any
 
 import pytest
 
-from missions.cli.distributed import free_port
+from missions.cli.distributed import free_port, process_commands
 from missions.deployment import check_deployment
 from missions.distributed.supervisor import Supervisor
 
 ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENTS = ROOT / "tests" / "deployments"
 FAILSAFE_S = 120.0  # a bound for what must happen, never a measure
-UNTIL = "20000"  # s of mission time: a safety net; each drill ends its mission itself
+UNTIL = 20000.0  # s of mission time: a safety net; each drill ends its mission itself
 
 
 @dataclass(frozen=True)
@@ -58,11 +57,7 @@ class Drill:
         self.out = out
         self.mission = checked.mission_process
         endpoint = f"tcp/127.0.0.1:{free_port()}"
-        base = [sys.executable, "-m", "missions.cli", "serve", "process", str(deployment), "--out", str(out)]
-        base += ["--until", UNTIL]
-        router = checked.router
-        names = [router, *[n for n in checked.deployment.processes if n != router]]
-        commands = {n: [*base, n, *(["--listen", endpoint] if n == router else ["--connect", endpoint])] for n in names}
+        commands = process_commands(deployment, endpoint, out=out, until=UNTIL)
         self.lines: list[Line] = []
         self._changed = threading.Condition()
         self.supervisor = Supervisor(commands, self._keep, cwd=str(ROOT))

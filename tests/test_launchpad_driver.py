@@ -18,8 +18,8 @@ import pytest
 
 from robots.clock import SimClock
 from robots.drivers.chefbot_base import ChefbotBase, open_chefbot
-from robots.drivers.launchpad import RateLimitedLog
 from robots.drivers.launchpad_protocol import BatteryVolts, BoardTime, Encoders, Quaternion
+from robots.drivers.serial_link import RateLimitedLog
 from robots.drivers.wheel_control import wheel_targets
 from robots.interfaces import Battery, Drive, Imu, Odometry, Pose2D, Sonar, check_interfaces
 from tests.launchpad_helpers import FAILSAFE_S, Board, Delivered, chefbot, commands, wait_until

@@ -63,6 +63,29 @@ def process(
     raise typer.Exit(code)
 
 
+def process_commands(
+    deployment: Path,
+    endpoint: str,
+    *,
+    out: Path,
+    seed: int | None = None,
+    until: float | None = None,
+    certs: Path | None = None,
+) -> dict[str, list[str]]:
+    """Each process's ``serve process`` command, the router first: it listens on ``endpoint``, the others connect."""
+    from missions.deployment import check_deployment
+
+    checked = check_deployment(deployment)
+    assert checked.deployment is not None, checked.problems
+    base = [sys.executable, "-m", "missions.cli", "serve", "process", str(deployment), "--out", str(out)]
+    base += ["--seed", str(seed)] if seed is not None else []
+    base += ["--until", str(until)] if until is not None else []
+    base += ["--certs", str(certs)] if certs is not None else []
+    router = checked.router
+    names = [router, *[n for n in checked.deployment.processes if n != router]]
+    return {name: [*base, name, "--listen" if name == router else "--connect", endpoint] for name in names}
+
+
 def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
     """``folder`` with a certificate for each process (loopback hosts), made if missing; its authority kept."""
     from robots.ros2.certs import Credentials, make_certificates
@@ -99,17 +122,9 @@ def up(
     assert checked.deployment is not None
     router = checked.router
     endpoint = f"{'tls' if secure else 'tcp'}/127.0.0.1:{port or free_port()}"
-    base = [sys.executable, "-m", "missions.cli", "serve", "process", str(deployment), "--out", str(out)]
-    if secure:
-        base += ["--certs", str(_loopback_certificates(out / "certs", list(checked.deployment.processes)))]
-    if seed is not None:
-        base += ["--seed", str(seed)]
-    if until is not None:
-        base += ["--until", str(until)]
-    names = [router, *[n for n in checked.deployment.processes if n != router]]
-    commands = {
-        name: [*base, name, *(["--listen", endpoint] if name == router else ["--connect", endpoint])] for name in names
-    }
+    certs = _loopback_certificates(out / "certs", list(checked.deployment.processes)) if secure else None
+    commands = process_commands(deployment, endpoint, out=out, seed=seed, until=until, certs=certs)
+    names = list(commands)
     width = max(len(name) for name in names)
 
     def show(name: str, line: str) -> None:

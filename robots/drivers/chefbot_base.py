@@ -40,7 +40,7 @@ from typing import Any
 
 from robots.clock import Clock
 from robots.drivers.diff_odometry import DiffOdometry
-from robots.drivers.launchpad import LaunchpadDriver, RateLimitedLog
+from robots.drivers.launchpad import LaunchpadDriver
 from robots.drivers.launchpad_protocol import (
     ENCODER_BITS,
     BatteryVolts,
@@ -53,6 +53,7 @@ from robots.drivers.launchpad_protocol import (
     micros_delta,
     wrap_delta,
 )
+from robots.drivers.serial_link import RateLimitedLog
 from robots.drivers.wheel_control import WheelController, WheelSpeed, wheel_targets
 from robots.interfaces import BatteryState, ImuReading, OdometryReading, Pose2D, SonarReading
 from robots.profile import Profile

@@ -1,82 +1,24 @@
-"""The Chefbot's Tiva C Launchpad over a serial port: the link (pyserial, 115200 8N1).
+"""The Chefbot's Tiva C Launchpad over a serial port (pyserial, 115200 8N1).
 
-A reader thread turns the board's bytes into messages (``launchpad_protocol.LineDecoder``) and
-hands each to a listener (the controller chain, ``chefbot_base.ChefbotBase``); motor commands
-are written from any thread under a lock, clamped to the PWM range whatever asked for them.
-
-What goes wrong on a real robot is handled here, never raised into the mission:
-
-- **Garbage** (noise, a board printing its boot text, a line cut by a reconnection) is dropped
-  and counted by reason; the next good line is parsed.
-- **The port disappears** (USB unplugged, board browned out): the read fails, the port is
-  closed and reopened with exponential backoff (``backoff`` seconds, doubling) until it is
-  back. A port that stays silent for ``silence_s`` is treated the same way (a hung USB CDC
-  link often needs a reopen).
-- **Zero speed** goes out first on every (re)connection (the board keeps its last speeds while
-  the PC is away), as a last try on every disconnection, and on ``close()`` (also at
-  interpreter exit): the motors never keep a stale command.
-
-Warnings are logged at a limited rate (``RateLimitedLog``): a flood of garbage does not flood
-the log; the counters in ``stats()`` say how much there was.
+The link (``serial_link.SerialLink``: reconnection, garbage, the safe command on every
+connection and exit) with the Launchpad's line protocol (``launchpad_protocol.LineDecoder``);
+its listener is the controller chain (``chefbot_base.ChefbotBase``). Motor commands are clamped
+to the PWM range whatever asked for them, and zero speed is the safe command.
 """
 
 from __future__ import annotations
 
-import atexit
-import contextlib
-import logging
-import threading
 import time
-from collections import Counter
 from collections.abc import Callable
-from typing import Any, Protocol
 
-import serial
-
-from robots.drivers.launchpad_protocol import BAUD, RESET_COMMAND, LineDecoder, Message, speed_command
-
-log = logging.getLogger(__name__)
+from robots.drivers.launchpad_protocol import BAUD, RESET_COMMAND, LineDecoder, speed_command
+from robots.drivers.serial_link import Listener, SerialLink
 
 ZERO = speed_command(0, 0)
 
 
-class Listener(Protocol):
-    """What the link tells the controller chain; called from the reader thread."""
-
-    def on_message(self, message: Message, received: float) -> None: ...
-
-    def on_connect(self) -> None: ...
-
-    def on_disconnect(self) -> None: ...
-
-
-class RateLimitedLog:
-    """A warning per key at most every ``interval_s``; the ones held back are counted and
-    reported with the next one that goes out."""
-
-    def __init__(
-        self, logger: logging.Logger, interval_s: float = 5.0, monotonic: Callable[[], float] = time.monotonic
-    ) -> None:
-        self.logger = logger
-        self.interval_s = interval_s
-        self.monotonic = monotonic
-        self._last: dict[str, float] = {}
-        self._held: Counter[str] = Counter()
-
-    def warning(self, key: str, message: str) -> bool:
-        now = self.monotonic()
-        last = self._last.get(key)
-        if last is not None and now - last < self.interval_s:
-            self._held[key] += 1
-            return False
-        held = self._held.pop(key, 0)
-        self._last[key] = now
-        self.logger.warning(message + (f" ({held} more like it since the last report)" if held else ""))
-        return True
-
-
-class LaunchpadDriver:
-    """The serial link to the board; see the module."""
+class LaunchpadDriver(SerialLink):
+    """The serial link to the Launchpad; see the module."""
 
     def __init__(
         self,
@@ -90,192 +32,28 @@ class LaunchpadDriver:
         start: bool = True,
         monotonic: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.port = port
-        self.listener = listener
-        self.baud = baud
-        self.backoff = backoff
-        self.silence_s = silence_s
-        self.read_timeout = read_timeout
-        self.monotonic = monotonic
-        self.decoder = LineDecoder()
-        self.warn = RateLimitedLog(log)
-        self.counters: Counter[str] = Counter()
-        self._serial: serial.Serial | None = None
-        self._write_lock = threading.Lock()
-        self._closing = threading.Event()
-        self._connected = threading.Event()
-        self._motion_allowed = True  # False once closing: only zero goes out
-        self._last_rx = 0.0
-        self._thread: threading.Thread | None = None
-        self._atexit = False
-        if start:
-            self.start()
-
-    # -- lifecycle ----------------------------------------------------------------------------
-
-    def start(self) -> None:
-        if self._thread is not None:
-            return
-        self._thread = threading.Thread(target=self._run, name=f"launchpad-reader {self.port}", daemon=True)
-        self._thread.start()
-        atexit.register(self.close)
-        self._atexit = True
-
-    @property
-    def connected(self) -> bool:
-        return self._connected.is_set()
-
-    def wait_connected(self, timeout: float) -> bool:
-        return self._connected.wait(timeout)
-
-    def close(self) -> None:
-        """Zero speed, stop the reader, close the port. Safe to call twice, from any thread."""
-        self._motion_allowed = False
-        self._write(ZERO)
-        self._closing.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
-        with self._write_lock:
-            port, self._serial = self._serial, None
-        if port is not None:
-            with contextlib.suppress(serial.SerialException, OSError):
-                port.write(ZERO)  # anything the listener sent while the reader stopped is overridden
-            _close_quietly(port)
-        self._connected.clear()
-        if self._atexit:
-            atexit.unregister(self.close)
-            self._atexit = False
-
-    # -- commands -----------------------------------------------------------------------------
+        super().__init__(
+            port,
+            LineDecoder(),
+            ZERO,
+            listener,
+            name="launchpad",
+            baud=baud,
+            backoff=backoff,
+            silence_s=silence_s,
+            read_timeout=read_timeout,
+            start=start,
+            monotonic=monotonic,
+        )
 
     def send_speeds(self, left: int, right: int) -> bool:
         """Motor outputs (PWM, clamped to ±255); False when the port is down or closing."""
-        if not self._motion_allowed and (left or right):
+        if not self.motion_allowed and (left or right):
             left = right = 0
-        ok = self._write(speed_command(left, right))
+        ok = self.send(speed_command(left, right))
         if ok:
             self.counters["speed_commands"] += 1
         return ok
 
     def reset_board(self) -> bool:
-        return self._write(RESET_COMMAND)
-
-    def _write(self, data: bytes) -> bool:
-        with self._write_lock:
-            port = self._serial
-            if port is None:
-                self.counters["writes_while_down"] += 1
-                return False
-            try:
-                port.write(data)
-            except (serial.SerialException, OSError) as exc:
-                self.counters["write_errors"] += 1
-                self.warn.warning("write", f"launchpad {self.port}: write failed: {exc}")
-                return False
-            self.counters["bytes_out"] += len(data)
-            return True
-
-    # -- the reader thread --------------------------------------------------------------------
-
-    def _run(self) -> None:
-        delay = self.backoff[0]
-        while not self._closing.is_set():
-            port = self._serial
-            if port is None:
-                if self._open():
-                    delay = self.backoff[0]
-                else:
-                    self._closing.wait(delay)
-                    delay = min(delay * 2, self.backoff[1])
-                continue
-            try:
-                data = port.read(port.in_waiting or 1)
-            except (serial.SerialException, OSError, TypeError, ValueError) as exc:
-                # TypeError/ValueError: pyserial on a port closed under it by close()
-                if not self._closing.is_set():
-                    self._lost(f"read failed: {exc}")
-                continue
-            now = self.monotonic()
-            if data:
-                self._last_rx = now
-                self.counters["bytes_in"] += len(data)
-                for message in self.decoder.feed(data):
-                    self._deliver(message, now)
-            elif now - self._last_rx > self.silence_s:
-                self.counters["silences"] += 1
-                self._lost(f"no data for {self.silence_s:g} s")
-
-    def _open(self) -> bool:
-        try:
-            port = serial.Serial(
-                self.port,
-                self.baud,
-                bytesize=serial.EIGHTBITS,
-                parity=serial.PARITY_NONE,
-                stopbits=serial.STOPBITS_ONE,
-                timeout=self.read_timeout,
-                write_timeout=0.5,
-            )
-        except (serial.SerialException, OSError, ValueError) as exc:
-            self.counters["open_failures"] += 1
-            self.warn.warning("open", f"launchpad {self.port}: cannot open: {exc}; retrying")
-            return False
-        if self._closing.is_set():
-            _close_quietly(port)
-            return False
-        self.decoder.resync()  # the first bytes may be the middle of a line
-        with self._write_lock:
-            self._serial = port
-        self._last_rx = self.monotonic()
-        self._write(ZERO)  # the board kept whatever it was told before the link went down
-        self.counters["connects"] += 1
-        if self.counters["connects"] > 1:
-            self.warn.warning("reconnect", f"launchpad {self.port}: reconnected")
-        self._connected.set()
-        self._notify("on_connect")
-        return True
-
-    def _lost(self, why: str) -> None:
-        with self._write_lock:
-            port, self._serial = self._serial, None
-        self._connected.clear()
-        if port is not None:
-            with contextlib.suppress(serial.SerialException, OSError):
-                port.write(ZERO)  # a last try: a half-broken link may still carry it
-            _close_quietly(port)
-        self.counters["disconnects"] += 1
-        self.warn.warning("lost", f"launchpad {self.port}: link lost ({why}); reconnecting")
-        self._notify("on_disconnect")
-
-    def _deliver(self, message: Message, received: float) -> None:
-        if self.listener is None:
-            return
-        try:
-            self.listener.on_message(message, received)
-        except Exception as exc:  # a bug in the chain must not stop the reader (and the zeroing)
-            self.counters["listener_errors"] += 1
-            self.warn.warning("listener", f"launchpad {self.port}: handling {message!r} failed: {exc!r}")
-
-    def _notify(self, event: str) -> None:
-        if self.listener is None:
-            return
-        try:
-            getattr(self.listener, event)()
-        except Exception as exc:
-            self.counters["listener_errors"] += 1
-            self.warn.warning("listener", f"launchpad {self.port}: {event} failed: {exc!r}")
-
-    def stats(self) -> dict[str, Any]:
-        """Counters for reports: lines parsed by kind, lines dropped by reason, link events."""
-        return {
-            "port": self.port,
-            "connected": self.connected,
-            "lines_ok": dict(sorted(self.decoder.ok.items())),
-            "lines_bad": dict(sorted(self.decoder.bad.items())),
-            **dict(sorted(self.counters.items())),
-        }
-
-
-def _close_quietly(port: serial.Serial) -> None:
-    with contextlib.suppress(serial.SerialException, OSError):
-        port.close()
+        return self.send(RESET_COMMAND)
