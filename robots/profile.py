@@ -14,12 +14,15 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from robots import PROFILES_DIR
+from robots.gaits import Gaits
 from robots.interfaces import INTERFACES
 from robots.located_yaml import Loaded, Problem, find_yaml, load_document
 from robots.ros2.topics import check_section
+
+LEGGED_STAND_IN = (0.05, 1000)  # a legged base's wheel diameter (m) and ticks per turn, in the simulator only
 
 
 class _Strict(BaseModel):
@@ -29,11 +32,15 @@ class _Strict(BaseModel):
 
 
 class Base(_Strict):
-    kind: Literal["differential"] = "differential"
+    """The base. A ``legged`` one (Bittle) walks in gaits (profile ``gaits:``); the simulator moves it
+    like a differential base whose wheels are its feet's track (``wheel_separation``), so it has no
+    wheel size, RPM or encoders to give: stand-ins fill them (``LEGGED_STAND_IN``)."""
+
+    kind: Literal["differential", "legged"] = "differential"
     footprint_radius: float = Field(gt=0, description="m; a circle holding the whole robot")
-    wheel_diameter: float = Field(gt=0, description="m")
-    wheel_separation: float = Field(gt=0, description="m, between the wheels' contact points")
-    max_wheel_rpm: float = Field(gt=0)
+    wheel_diameter: float | None = Field(default=None, gt=0, description="m")
+    wheel_separation: float = Field(gt=0, description="m, between the wheels' contact points (a legged base's track)")
+    max_wheel_rpm: float | None = Field(default=None, gt=0)
     max_linear: float = Field(gt=0, description="m/s")
     max_angular: float = Field(gt=0, description="rad/s")
     max_linear_accel: float = Field(default=0.5, gt=0, description="m/s²")
@@ -41,21 +48,39 @@ class Base(_Strict):
     max_linear_decel: float | None = Field(
         default=None, gt=0, description="m/s² when slowing down (motor braking); default: max_linear_accel"
     )
+    encoder_ticks_per_rev: int | None = Field(default=None, gt=0, description="encoder counts per wheel revolution")
+    mass: float = Field(gt=0, description="kg, without payload")
+    payload: float = Field(default=0.0, ge=0, description="kg, the most it carries")
+
+    @model_validator(mode="after")
+    def _wheels(self) -> Base:
+        wheels = ("wheel_diameter", "max_wheel_rpm", "encoder_ticks_per_rev")
+        if self.kind == "differential":
+            missing = [name for name in wheels if getattr(self, name) is None]
+            if missing:
+                raise ValueError(f"a differential base needs {', '.join(missing)}")
+        else:
+            given = [name for name in wheels if getattr(self, name) is not None]
+            if given:
+                raise ValueError(f"a legged base has no wheels: remove {', '.join(given)}")
+            diameter, ticks = LEGGED_STAND_IN
+            top = self.max_linear + self.max_angular * self.wheel_separation / 2
+            self.wheel_diameter, self.encoder_ticks_per_rev = diameter, ticks
+            self.max_wheel_rpm = top * 60 / (math.pi * diameter)
+        return self
 
     @property
     def braking(self) -> float:
         return self.max_linear_decel or self.max_linear_accel
 
-    encoder_ticks_per_rev: int = Field(gt=0, description="encoder counts per wheel revolution")
-    mass: float = Field(gt=0, description="kg, without payload")
-    payload: float = Field(default=0.0, ge=0, description="kg, the most it carries")
-
     @property
     def ticks_per_metre(self) -> float:
+        assert self.encoder_ticks_per_rev is not None and self.wheel_diameter is not None
         return self.encoder_ticks_per_rev / (math.pi * self.wheel_diameter)
 
     @property
     def wheel_top_speed(self) -> float:
+        assert self.max_wheel_rpm is not None and self.wheel_diameter is not None
         return self.max_wheel_rpm * math.pi * self.wheel_diameter / 60
 
 
@@ -131,6 +156,7 @@ class Profile(_Strict):
         description="options per backend, e.g. {hardware: {port: /dev/ttyACM0}}; checked by the backend opened",
     )
     ros2: Ros2Section = Field(default_factory=Ros2Section)
+    gaits: Gaits | None = Field(default=None, description="a legged base's gaits (robots/gaits.py)")
 
 
 def known_profiles() -> list[str]:
@@ -174,6 +200,10 @@ def load_profile(path: str | Path) -> tuple[Profile | None, list[Problem], Loade
             ("base", "max_angular"),
             f"{base.max_angular} rad/s is faster than the wheels allow ({wheel_turn:.2f} rad/s turning on the spot)",
         )
+    if base.kind == "legged" and profile.gaits is None:
+        at(("base", "kind"), "a legged base needs gaits: (which skill walks how fast: robots/gaits.py)")
+    if base.kind != "legged" and profile.gaits is not None:
+        at(("gaits",), f"only a legged base walks in gaits; this one is {base.kind}")
     if profile.battery.empty_voltage >= profile.battery.full_voltage:
         at(("battery", "empty_voltage"), "must be below full_voltage")
     for name, device in profile.interfaces.items():

@@ -13,7 +13,7 @@ CHEFBOT = Path("robots/profiles/chefbot.yaml")
 
 
 def test_shipped_profiles_load_with_the_books_figures() -> None:
-    assert known_profiles() == ["chefbot", "peoplebot"]
+    assert known_profiles() == ["bittle", "chefbot", "peoplebot"]
     chefbot, problems, _ = load_profile(CHEFBOT)
     assert problems == [] and chefbot is not None
     base = chefbot.base
@@ -75,6 +75,13 @@ def broken(tmp_path: Path, old: str, new: str) -> list[str]:
             "bot.yaml:33:72: error: must be below range_max",
         ),
         ("  empty_voltage: 10.5", "  empty_voltage: 13.0", "bot.yaml:26:3: error: must be below full_voltage"),
+        ("  wheel_diameter: 0.09\n", "", "bot.yaml:8:1: error: base: a differential base needs wheel_diameter"),
+        (
+            "skills: {}",
+            "skills: {}\ngaits: {forward: [{skill: wkF, speed: 0.1}], back: {skill: bk, speed: 0.05}, "
+            "turn: {skill: crL, speed: 0.03, turn_rate: 0.5}}",
+            "bot.yaml:45:1: error: only a legged base walks in gaits; this one is differential",
+        ),
     ],
 )
 def test_broken_profiles_give_located_errors(tmp_path: Path, old: str, new: str, expected: str) -> None:
@@ -98,3 +105,49 @@ def test_missions_name_robots_by_profile_or_path(tmp_path: Path) -> None:
     ]
     mission.write_text("world: museum\n" + body)
     assert "a world needs a robot to put in it" in str(check(mission).problems[0])
+
+
+BITTLE = Path("robots/profiles/bittle.yaml")
+
+
+def test_bittle_is_a_legged_base_that_walks_in_gaits() -> None:
+    bittle, problems, _ = load_profile(BITTLE)
+    assert problems == [] and bittle is not None and bittle.gaits is not None
+    assert bittle.base.kind == "legged"
+    assert [g.skill for g in bittle.gaits.forward] == ["crF", "wkF", "trF"]
+    assert bittle.gaits.fastest == bittle.base.max_linear  # the limit is the fastest gait
+    assert bittle.interfaces["drive"].hardware == "nyboard"
+    assert bittle.backends["hardware"]["baud"] == 115200  # the article's (its repository says 57600)
+    # the simulator's stand-in wheels never limit a gait
+    assert bittle.base.wheel_top_speed >= bittle.base.max_linear + bittle.base.max_angular * 0.04
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        (
+            "  mass: 0.29",
+            "  mass: 0.29\n  wheel_diameter: 0.05",
+            "base: a legged base has no wheels: remove wheel_diameter",
+        ),
+        ("{skill: crL, speed: 0.03, turn_rate: 0.5}", "{skill: crR, speed: 0.03, turn_rate: 0.5}", "left variant"),
+        ("{skill: wkF, speed: 0.10}", "{skill: 'wk F', speed: 0.10}", "gaits.forward.1.skill: String should match"),
+    ],
+)
+def test_broken_legged_profiles_give_located_errors(tmp_path: Path, old: str, new: str, expected: str) -> None:
+    text = BITTLE.read_text()
+    assert old in text
+    path = tmp_path / "dog.yaml"
+    path.write_text(text.replace(old, new))
+    _, problems, _ = load_profile(path)
+    assert any(expected in str(p) for p in problems), problems
+
+
+def test_a_legged_base_without_gaits_is_refused(tmp_path: Path) -> None:
+    text = BITTLE.read_text()
+    path = tmp_path / "dog.yaml"
+    path.write_text(text[: text.index("gaits:")] + text[text.index("interfaces:") :])
+    _, problems, _ = load_profile(path)
+    assert [str(p).replace(str(tmp_path) + "/", "") for p in problems] == [
+        "dog.yaml:12:3: error: a legged base needs gaits: (which skill walks how fast: robots/gaits.py)"
+    ]

@@ -1,31 +1,39 @@
 """A real robot as a run's backend: its hardware drivers on a serial port, giving the devices
 for the interfaces the profile assigns to them (the same ``devices`` dict the simulator gives).
 
-Only the Chefbot's Launchpad exists so far; an interface whose driver does not exist yet (the
-Chefbot's depth camera, ``hardware: astra``) is listed in ``not_connected`` and left out.
+The board that drives the base is chosen by the drive's ``hardware:`` in the profile: the
+Chefbot's Launchpad (``launchpad``) or Bittle's NyBoard (``nyboard``). An interface whose driver
+does not exist yet (the Chefbot's depth camera, ``hardware: astra``) is listed in
+``not_connected`` and left out.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from robots.backend import Fault
 from robots.clock import Clock
+from robots.drivers.bittle_base import NYBOARD, open_bittle
 from robots.drivers.chefbot_base import LAUNCHPAD, open_chefbot
 from robots.gridmap import GridMap
 from robots.interfaces import Pose2D
 from robots.profile import Profile
 
-DRIVERS = (LAUNCHPAD,)
+DRIVERS: dict[str, Callable[..., Any]] = {LAUNCHPAD: open_chefbot, NYBOARD: open_bittle}  # board -> opener
+
+
+def board_of(profile: Profile) -> str | None:
+    """The board a driver here knows that drives the profile's base, if any."""
+    drive = profile.interfaces.get("drive")
+    return drive.hardware if drive is not None and drive.hardware in DRIVERS else None
 
 
 def drivable(profile: Profile) -> bool:
     """True when a driver here provides the profile's drive."""
-    drive = profile.interfaces.get("drive")
-    return drive is not None and drive.hardware in DRIVERS
+    return board_of(profile) is not None
 
 
 class SerialBackend:
@@ -43,17 +51,19 @@ class SerialBackend:
         ready_timeout: float = 5.0,
         **options: Any,
     ) -> None:
-        if not drivable(profile):
+        board = board_of(profile)
+        if board is None:
             raise ValueError(f"no hardware driver for robot {profile.name!r} yet (drivers: {', '.join(DRIVERS)})")
         self.profile = profile
         self.grid = grid  # the map of where the robot is, for localisation and navigation
         self.port = port
-        self.base = open_chefbot(port, profile, clock, start, **options)
+        self.board = board
+        self.base = DRIVERS[board](port, profile, clock, start, **options)
         if not self.base.wait_ready(ready_timeout):
             stats = self.base.link.stats()
             self.base.close()
             raise ConnectionError(
-                f"no readings from the Launchpad on {port} within {ready_timeout:g} s "
+                f"no {board} on {port} within {ready_timeout:g} s "
                 f"(connected: {stats['connected']}, lines parsed: {sum(stats['lines_ok'].values())})"
             )
         self.devices: dict[str, Any] = dict(self.base.devices)

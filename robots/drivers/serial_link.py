@@ -14,7 +14,9 @@ lock. What goes wrong on a real robot is handled here, never raised into the mis
 - **The safe command** (zero speed, a balance posture) goes out first on every (re)connection
   (the board keeps its last command while the PC is away), as a last try on every
   disconnection, and on ``close()`` (also at interpreter exit): nothing keeps a stale command.
-  Once closing, ``motion_allowed`` is False and drivers send only the safe command.
+  Once closing, ``motion_allowed`` is False and drivers send only the safe command; the last
+  word on ``close()`` is the ``parting_command`` (the safe one unless a driver gives another:
+  a legged robot lies down).
 
 Warnings are logged at a limited rate (``RateLimitedLog``): a flood of garbage does not flood
 the log; the counters in ``stats()`` say how much there was.
@@ -93,6 +95,7 @@ class SerialLink:
         listener: Listener | None = None,
         *,
         name: str = "board",
+        parting_command: bytes | None = None,
         baud: int,
         backoff: tuple[float, float] = (0.05, 2.0),
         silence_s: float | None = 2.0,
@@ -103,6 +106,7 @@ class SerialLink:
         self.port = port
         self.name = name
         self.safe_command = safe_command
+        self.parting_command = safe_command if parting_command is None else parting_command
         self.listener = listener
         self.baud = baud
         self.backoff = backoff
@@ -141,9 +145,10 @@ class SerialLink:
         return self._connected.wait(timeout)
 
     def close(self) -> None:
-        """Zero speed, stop the reader, close the port. Safe to call twice, from any thread."""
+        """The parting command (by default the safe one), stop the reader, close the port. Safe to
+        call twice, from any thread."""
         self._motion_allowed = False
-        self._write(self.safe_command)
+        self._write(self.parting_command)
         self._closing.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
@@ -151,7 +156,7 @@ class SerialLink:
             port, self._serial = self._serial, None
         if port is not None:
             with contextlib.suppress(serial.SerialException, OSError):
-                port.write(self.safe_command)  # anything the listener sent while the reader stopped is overridden
+                port.write(self.parting_command)  # anything the listener sent while the reader stopped is overridden
             _close_quietly(port)
         self._connected.clear()
         if self._atexit:

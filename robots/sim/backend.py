@@ -18,6 +18,8 @@ from robots.sim.devices import (
     SimCamera,
     SimDisplay,
     SimDrive,
+    SimGaitDrive,
+    SimGaitOdometry,
     SimImu,
     SimLaser,
     SimMicrophone,
@@ -32,6 +34,8 @@ from robots.sim.voices import Voices
 from robots.sim.world import Bump, World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
+WHEEL_SLIP = 0.02  # the World's default: wheels on a hard floor
+LEGGED_SLIP = 0.1  # decision: feet slip and gaits vary step to step far more than wheels
 
 
 def known_maps() -> list[str]:
@@ -53,7 +57,8 @@ def populated_world(
 ) -> tuple[World, Crowd]:
     """The robot's world and the people in it, wired together: people are laser returns and
     obstacles, and keep clear of the robot themselves. ``gatherings``: (time, centre, size, stay)."""
-    world = World(grid, profile, start, seed)
+    legged = profile.base.kind == "legged"
+    world = World(grid, profile, start, seed, slip_std=LEGGED_SLIP if legged else WHEEL_SLIP)
     crowd = Crowd.populate(grid, world.rng, people, avoid=(start.x, start.y))
     crowd.scripted = sorted(gatherings or [])
     world.movers = crowd.positions
@@ -87,9 +92,13 @@ class SimBackend:
         self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)
         self.devices: dict[str, Any] = {}
         self.not_simulated: list[str] = []
+        gaits = profile.gaits
+        walker = SimGaitDrive(self.world, gaits) if gaits is not None else None  # a legged base walks in gaits
         makers = {
-            "drive": lambda d: SimDrive(self.world),
-            "odometry": lambda d: SimOdometry(self.world, clock),
+            "drive": lambda d: walker or SimDrive(self.world),
+            "odometry": lambda d: (
+                SimGaitOdometry(self.world, walker, clock) if walker else SimOdometry(self.world, clock)
+            ),
             "imu": lambda d: SimImu(self.world, clock),
             "laser": lambda d: SimLaser(self.world, d, clock),
             "sonar": lambda d: SimSonar(self.world, d, clock),

@@ -2,7 +2,8 @@
 
 Odometry is computed from the encoder ticks exactly as a driver computes it from a real board
 (diff_tf's model), so it drifts with the simulated wheel slip; the world's true pose stays
-hidden from skills.
+hidden from skills. A legged base (Bittle) walks in gaits and estimates its odometry from them,
+as its NyBoard driver does (``SimGaitDrive``, ``SimGaitOdometry``).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from robots.clock import Clock
+from robots.gaits import GaitOdometry, Gaits, choose
 from robots.interfaces import (
     BatteryState,
     CameraInfo,
@@ -326,3 +328,52 @@ class SimMicrophone:
                 playing.append((first, sound))
         self._sounds = playing
         return np.clip(np.round(mixed), -32768, 32767).astype(np.int16)
+
+
+class SimGaitDrive:
+    """A legged base's drive: the command becomes a gait (robots/gaits.py), and the body walks at
+    that gait's table speed, as the NyBoard's robot would, not at the speed asked."""
+
+    def __init__(self, world: World, gaits: Gaits) -> None:
+        self.world = world
+        self.gaits = gaits
+        self.choice = choose(gaits, 0.0, 0.0)
+        self.commanded_at = -math.inf  # world time of the last command (its watchdog stops the gait)
+
+    def cmd_vel(self, v: float, w: float) -> None:
+        if not (math.isfinite(v) and math.isfinite(w)):
+            raise ValueError(f"a velocity command must be finite, got ({v}, {w})")
+        base = self.world.base
+        v = max(-base.max_linear, min(base.max_linear, v))
+        w = max(-base.max_angular, min(base.max_angular, w))
+        self.choice = choose(self.gaits, v, w)
+        self.commanded_at = self.world.time
+        self.world.cmd_vel(self.choice.v, self.choice.w)
+
+    def stop(self) -> None:
+        self.cmd_vel(0.0, 0.0)
+
+    def motion(self) -> tuple[float, float]:
+        """The gait's (v, w) now: none once the world's watchdog stopped the robot."""
+        if self.world.time - self.commanded_at > self.world.watchdog_s:
+            return 0.0, 0.0
+        return self.choice.v, self.choice.w
+
+
+class SimGaitOdometry:
+    """A legged base's odometry: dead reckoning from the gait it walks in (no encoders), which
+    the body's slip and the gait's start and stop leave behind the truth."""
+
+    def __init__(self, world: World, drive: SimGaitDrive, clock: Clock) -> None:
+        self.world = world
+        self.drive = drive
+        self.clock = clock
+        self.estimate = GaitOdometry(world.body.pose)
+        self._at = world.time
+
+    def read(self) -> OdometryReading:
+        now = self.world.time
+        self.estimate.advance(now - self._at, *self.drive.motion())
+        self._at = now
+        estimate = self.estimate
+        return OdometryReading(self.clock.now(), estimate.pose, estimate.twist, estimate.covariance)
