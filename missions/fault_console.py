@@ -13,9 +13,9 @@ from typing import TYPE_CHECKING
 from robots.emulators.launchpad import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, WHEELS
 
 if TYPE_CHECKING:
-    from robots.emulators.launchpad import LaunchpadEmulator
+    from robots.emulators.pty_board import PtyBoard
 
-FAULTS = "garbage N, drop N, stall left|right|none, unplug SECONDS, reset, status"
+FAULTS = "garbage N, drop N, stall left|right|none (wheels only), unplug SECONDS, reset, status"
 USAGE = {
     "garbage": f"garbage N: N random bytes, 1 to {MAX_GARBAGE:,}",
     "drop": f"drop N: lose the next N lines, 1 to {MAX_DROP:,}",
@@ -50,7 +50,7 @@ def _seconds(words: list[str]) -> float:
     return value
 
 
-def _run(emulator: LaunchpadEmulator, words: list[str]) -> str | None:
+def _run(emulator: PtyBoard, words: list[str]) -> str | None:
     fault = words[0]
     arguments = 1 if fault in ("garbage", "drop", "stall", "unplug") else 0
     if len(words) != 1 + arguments:
@@ -60,6 +60,8 @@ def _run(emulator: LaunchpadEmulator, words: list[str]) -> str | None:
     elif fault == "drop":
         emulator.drop_lines(_count(words, MAX_DROP))
     elif fault == "stall":
+        if not hasattr(emulator, "stall"):
+            raise BadFault("this board drives no wheels")
         if words[1] not in (*WHEELS, "none"):
             raise BadFault(f"no wheel {words[1]!r}")
         emulator.stall(None if words[1] == "none" else words[1])
@@ -68,12 +70,15 @@ def _run(emulator: LaunchpadEmulator, words: list[str]) -> str | None:
     elif fault == "reset":
         emulator.board_reset()
     else:
-        pose = emulator.world.body.pose
-        return f"pose {pose.x:.3f} {pose.y:.3f} {pose.theta:+.3f}  motors {emulator.speeds}  {dict(emulator.counters)}"
+        pose = emulator.world.body.pose  # type: ignore[attr-defined]
+        doing = (
+            f"motors {emulator.speeds}" if hasattr(emulator, "speeds") else f"skill {getattr(emulator, 'skill', '?')}"
+        )
+        return f"pose {pose.x:.3f} {pose.y:.3f} {pose.theta:+.3f}  {doing}  {dict(emulator.counters)}"
     return None
 
 
-def apply_fault(emulator: LaunchpadEmulator, line: str) -> str | None:
+def apply_fault(emulator: PtyBoard, line: str) -> str | None:
     """Carry out one typed line on the emulator; what to tell the operator, if anything. Never raises
     for a line's content: a bad one gets its reason and the usage of the fault it named."""
     words = line.split()

@@ -59,6 +59,16 @@ def bench_crowd(quick: bool = typer.Option(False, help="fewer trials: a smoke te
         _stderr([f"target missed: {', '.join(over)}"])
 
 
+@bench_app.command("bittle")
+def bench_bittle(quick: bool = typer.Option(False, help="fewer commands and seeds: a smoke test")) -> None:
+    """Bittle's NyBoard driver (parser, token latency, acknowledgement round trip) and its gait odometry."""
+    from missions.bench import bench_bittle as bench
+
+    missed = bench.missed(bench.main(quick=quick))
+    if missed and not quick:
+        _stderr([f"target missed: {', '.join(missed)}"])
+
+
 @bench_app.command("upload")
 def bench_upload(quick: bool = typer.Option(False, help="fewer photos: a smoke test, not figures to quote")) -> None:
     """Photos through the durable outbox to the local gallery against a plain HTTP POST; the paper's 3.26 MB photo."""

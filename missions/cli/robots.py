@@ -63,7 +63,7 @@ def _robot_place(profile_name: str, world: str, start: str):
 
 
 def emulate(
-    board: str = typer.Argument(..., help="the board to emulate: launchpad (Chefbot's Tiva C)"),
+    board: str = typer.Argument(..., help="the board to emulate: launchpad (Chefbot's Tiva C), nyboard (Bittle's)"),
     world: str = typer.Option("restaurant", help="the map the simulated robot drives on"),
     start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
     seed: int = typer.Option(0, help="the simulated world's seed", callback=NON_NEGATIVE),
@@ -80,17 +80,25 @@ def emulate(
     """
     import threading
 
-    if board != "launchpad":
-        raise _fail(f"error: unknown board {board!r}; boards: launchpad", 2)
+    robots = {"launchpad": "chefbot", "nyboard": "bittle"}
+    if board not in robots:
+        raise _fail(f"error: unknown board {board!r}; boards: {', '.join(robots)}", 2)
     from missions.fault_console import FAULTS, apply_fault
     from robots.emulators.launchpad import LaunchpadEmulator
+    from robots.emulators.nyboard import NyBoardEmulator
+    from robots.emulators.pty_board import PtyBoard
     from robots.sim.world import World
 
-    profile, grid, pose = _robot_place("chefbot", world, start)
-    emulator = LaunchpadEmulator(World(grid, profile, pose, seed), counter_start=counter_start).start()
-    console.print(
-        f"Launchpad emulator: connect to {emulator.path} (now {emulator.pty_path}), 115200 8N1", highlight=False
-    )
+    profile, grid, pose = _robot_place(robots[board], world, start)
+    body = World(grid, profile, pose, seed)
+    if board == "launchpad":
+        emulator: PtyBoard = LaunchpadEmulator(body, counter_start=counter_start).start()
+    elif counter_start:
+        raise _fail("error: --counter-start is the Launchpad's encoders' first count; the NyBoard has none", 2)
+    else:
+        emulator = NyBoardEmulator(body).start()
+    name = {"launchpad": "Launchpad", "nyboard": "NyBoard (OpenCat 2)"}[board]
+    console.print(f"{name} emulator: connect to {emulator.path} (now {emulator.pty_path}), 115200 8N1", highlight=False)
     console.print(f"Ctrl-C stops; faults: {FAULTS}")
     stop = threading.Event()
 

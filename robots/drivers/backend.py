@@ -23,6 +23,7 @@ from robots.interfaces import Pose2D
 from robots.profile import Profile
 
 DRIVERS: dict[str, Callable[..., Any]] = {LAUNCHPAD: open_chefbot, NYBOARD: open_bittle}  # board -> opener
+BOARD_NAMES = {LAUNCHPAD: "Launchpad", NYBOARD: "NyBoard"}
 
 
 def board_of(profile: Profile) -> str | None:
@@ -63,7 +64,7 @@ class SerialBackend:
             stats = self.base.link.stats()
             self.base.close()
             raise ConnectionError(
-                f"no {board} on {port} within {ready_timeout:g} s "
+                f"no readings from the {BOARD_NAMES[board]} on {port} within {ready_timeout:g} s "
                 f"(connected: {stats['connected']}, lines parsed: {sum(stats['lines_ok'].values())})"
             )
         self.devices: dict[str, Any] = dict(self.base.devices)

@@ -179,7 +179,7 @@ class BittleBase:
             self._integrate(received)
             match reply:
                 case opencat.Ack(token="k"):
-                    if self._sent is not None and self._acked != self._sent:
+                    if self._sent is not None and self._acked != self._sent and self._sent not in self._refused:
                         self._acked = self._sent
                         self.counters["acks"] += 1
                     else:

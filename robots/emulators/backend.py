@@ -1,9 +1,11 @@
-"""The Chefbot over its emulated Launchpad: the whole byte path of a real robot, in simulation.
+"""A robot over its emulated board: the whole byte path of a real robot, in simulation.
 
-The emulator plays the board on a pty and moves the simulated world in its own thread, in real
-time; the real driver (``SerialBackend``) connects to the pty, and the devices the profile
-gives the Launchpad come from it. Interfaces on other hardware (the depth camera's scan) come
-from the same simulated world, read under the emulator's lock. ``step()`` only records the
+The board that drives the profile's base is emulated (the Chefbot's Launchpad, Bittle's
+NyBoard): it plays the firmware on a pty and moves the simulated world in its own thread, in
+real time; the real driver (``SerialBackend``) connects to the pty, and the devices the profile
+gives the board come from it. Interfaces on other hardware (the Chefbot's depth camera's scan,
+the camera on Bittle's Raspberry Pi) come from the same simulated world, read under the
+emulator's lock. ``step()`` only records the
 true path for the report: the world moves by itself.
 """
 
@@ -14,15 +16,20 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from robots.backend import Fault
 from robots.clock import Clock
-from robots.drivers.backend import SerialBackend
+from robots.drivers.backend import SerialBackend, board_of
+from robots.drivers.bittle_base import NYBOARD
+from robots.drivers.chefbot_base import LAUNCHPAD
 from robots.emulators.launchpad import LaunchpadEmulator
+from robots.emulators.nyboard import NyBoardEmulator
 from robots.gridmap import GridMap
 from robots.interfaces import LaserScan, Pose2D
 from robots.profile import Profile
 from robots.sim.backend import populated_world
-from robots.sim.devices import SimLaser, SimMicrophone, SimSpeaker
+from robots.sim.devices import SimCamera, SimLaser, SimMicrophone, SimSpeaker
 from robots.sim.trajectory import Trajectory
 from robots.sim.voices import Voices
 
@@ -37,6 +44,25 @@ class _LockedLaser:
     def scan(self) -> LaserScan:
         with self.lock:
             return self.laser.scan()
+
+
+class _LockedCamera:
+    """The simulated camera, rendered while the emulator's thread may be stepping the world."""
+
+    def __init__(self, camera: SimCamera, lock: threading.Lock) -> None:
+        self.camera = camera
+        self.info = camera.info
+        self.lock = lock
+
+    def frame(self) -> np.ndarray:
+        with self.lock:
+            return self.camera.frame()
+
+
+EMULATORS: dict[str, type[LaunchpadEmulator] | type[NyBoardEmulator]] = {
+    LAUNCHPAD: LaunchpadEmulator,
+    NYBOARD: NyBoardEmulator,
+}
 
 
 class EmulatorBackend:
@@ -56,7 +82,12 @@ class EmulatorBackend:
         self.lock = threading.Lock()
         self.world, self.crowd = populated_world(profile, grid, start, seed, people)
         steps = [self.crowd.step] if self.crowd.people else []
-        self.emulator = LaunchpadEmulator(self.world, world_lock=self.lock, extra_steps=steps, **emulator_options)
+        board = board_of(profile)
+        if board is None:
+            raise ValueError(f"no emulated board drives robot {profile.name!r} (boards: {', '.join(EMULATORS)})")
+        if board != LAUNCHPAD and emulator_options.pop("counter_start", 0):
+            raise ValueError("counter_start is the Launchpad's encoders' first count: this robot has none")
+        self.emulator = EMULATORS[board](self.world, world_lock=self.lock, extra_steps=steps, **emulator_options)
         self.emulator.start()
         try:
             self.serial = SerialBackend(profile, clock, self.emulator.path, start)
@@ -66,6 +97,9 @@ class EmulatorBackend:
         self.devices: dict[str, Any] = dict(self.serial.devices)
         if "laser" in profile.interfaces and "laser" not in self.devices:
             self.devices["laser"] = _LockedLaser(SimLaser(self.world, profile.interfaces["laser"], clock), self.lock)
+        if "camera" in profile.interfaces and "camera" not in self.devices:  # the robot PC's camera
+            camera = SimCamera(self.world, self.crowd, profile.interfaces["camera"], clock)
+            self.devices["camera"] = _LockedCamera(camera, self.lock)
         # the speaker and microphone are the robot's PC's, not the board's: simulated, with the
         # simulator's voices (seated guests answer the robot's questions)
         self.voices: Voices | None = None
@@ -89,13 +123,15 @@ class EmulatorBackend:
     def faults(self) -> Mapping[str, Fault]:
         """The board's faults, as ``botstage emulate`` types them: garbage, drop, stall, unplug, reset."""
         emulator = self.emulator
-        return {
+        faults: dict[str, Fault] = {
             "garbage": emulator.inject_garbage,
             "drop": emulator.drop_lines,
-            "stall": emulator.stall,
             "unplug": emulator.disconnect,
             "reset": emulator.board_reset,
         }
+        if isinstance(emulator, LaunchpadEmulator):
+            faults["stall"] = emulator.stall
+        return faults
 
     def true_pose(self) -> Pose2D:
         with self.lock:
@@ -108,6 +144,9 @@ class EmulatorBackend:
         laser = self.devices.get("laser")
         if isinstance(laser, _LockedLaser):
             laser.laser.clock = clock
+        camera = self.devices.get("camera")
+        if isinstance(camera, _LockedCamera):
+            camera.camera.clock = clock
         speaker, microphone = self.devices.get("speaker"), self.devices.get("microphone")
         if isinstance(speaker, SimSpeaker):
             speaker.clock = clock
