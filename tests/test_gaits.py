@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from pydantic import ValidationError
 
@@ -70,6 +71,8 @@ def test_odometry_follows_the_arc_of_a_gait() -> None:
     assert pose.theta == pytest.approx(math.pi / 2)
     assert (pose.x, pose.y) == pytest.approx((1.0 + radius, 2.0 + radius))
     assert odometry.distance == pytest.approx(0.1 * math.pi)
-    assert odometry.covariance[0, 0] == pytest.approx((0.2 * 0.1 * math.pi) ** 2)
+    covariance = odometry.covariance
+    assert covariance[2, 2] == pytest.approx((0.2 * math.pi / 2) ** 2 + 0.18**2 * 0.1 * math.pi)
+    assert np.all(np.linalg.eigvalsh(covariance) > 0)  # heading doubt spreads position
     odometry.advance(2.0, -0.05, 0.0)  # straight back along the new heading
     assert (odometry.pose.x, odometry.pose.y) == pytest.approx((1.0 + radius, 2.0 + radius - 0.1))

@@ -96,9 +96,7 @@ class SimBackend:
         walker = SimGaitDrive(self.world, gaits) if gaits is not None else None  # a legged base walks in gaits
         makers = {
             "drive": lambda d: walker or SimDrive(self.world),
-            "odometry": lambda d: (
-                SimGaitOdometry(self.world, walker, clock) if walker else SimOdometry(self.world, clock)
-            ),
+            "odometry": lambda d: SimGaitOdometry(walker, clock) if walker else SimOdometry(self.world, clock),
             "imu": lambda d: SimImu(self.world, clock),
             "laser": lambda d: SimLaser(self.world, d, clock),
             "sonar": lambda d: SimSonar(self.world, d, clock),

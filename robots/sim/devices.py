@@ -332,13 +332,21 @@ class SimMicrophone:
 
 class SimGaitDrive:
     """A legged base's drive: the command becomes a gait (robots/gaits.py), and the body walks at
-    that gait's table speed, as the NyBoard's robot would, not at the speed asked."""
+    that gait's table speed, as the NyBoard's robot would, not at the speed asked.
+
+    It also keeps the gait odometry's estimate, moved on over each stretch of world time in the
+    gait that held then (up to the world's watchdog, which stops the robot): the estimate a
+    driver makes from the gaits it sent, which the body's slip and its starts and stops leave
+    behind the truth.
+    """
 
     def __init__(self, world: World, gaits: Gaits) -> None:
         self.world = world
         self.gaits = gaits
         self.choice = choose(gaits, 0.0, 0.0)
         self.commanded_at = -math.inf  # world time of the last command (its watchdog stops the gait)
+        self.estimate = GaitOdometry(world.body.pose)
+        self._at = world.time  # the estimate is up to this world time
 
     def cmd_vel(self, v: float, w: float) -> None:
         if not (math.isfinite(v) and math.isfinite(w)):
@@ -346,6 +354,7 @@ class SimGaitDrive:
         base = self.world.base
         v = max(-base.max_linear, min(base.max_linear, v))
         w = max(-base.max_angular, min(base.max_angular, w))
+        self.advance()
         self.choice = choose(self.gaits, v, w)
         self.commanded_at = self.world.time
         self.world.cmd_vel(self.choice.v, self.choice.w)
@@ -353,27 +362,24 @@ class SimGaitDrive:
     def stop(self) -> None:
         self.cmd_vel(0.0, 0.0)
 
-    def motion(self) -> tuple[float, float]:
-        """The gait's (v, w) now: none once the world's watchdog stopped the robot."""
-        if self.world.time - self.commanded_at > self.world.watchdog_s:
-            return 0.0, 0.0
-        return self.choice.v, self.choice.w
+    def advance(self) -> None:
+        """Move the estimate on to the world's time in the gait held since the last command."""
+        now, walking_until = self.world.time, self.commanded_at + self.world.watchdog_s
+        moving = max(0.0, min(now, walking_until) - self._at)
+        self.estimate.advance(moving, self.choice.v, self.choice.w)
+        if now > walking_until:
+            self.estimate.advance(0.0, 0.0, 0.0)  # the watchdog stopped it: standing since
+        self._at = now
 
 
 class SimGaitOdometry:
-    """A legged base's odometry: dead reckoning from the gait it walks in (no encoders), which
-    the body's slip and the gait's start and stop leave behind the truth."""
+    """A legged base's odometry: dead reckoning from the gaits it walked in (no encoders)."""
 
-    def __init__(self, world: World, drive: SimGaitDrive, clock: Clock) -> None:
-        self.world = world
+    def __init__(self, drive: SimGaitDrive, clock: Clock) -> None:
         self.drive = drive
         self.clock = clock
-        self.estimate = GaitOdometry(world.body.pose)
-        self._at = world.time
 
     def read(self) -> OdometryReading:
-        now = self.world.time
-        self.estimate.advance(now - self._at, *self.drive.motion())
-        self._at = now
-        estimate = self.estimate
+        self.drive.advance()
+        estimate = self.drive.estimate
         return OdometryReading(self.clock.now(), estimate.pose, estimate.twist, estimate.covariance)
