@@ -107,6 +107,13 @@ class Device(_Strict):
     width: int | None = Field(default=None, ge=1)
     height: int | None = Field(default=None, ge=1)
     noise: float | None = Field(default=None, ge=0, description="std of the measurement noise")
+    mount_height: float | None = Field(default=None, gt=0, description="m above the floor (a camera)")
+    look_up: float | None = Field(
+        default=None,
+        ge=0,
+        lt=1.2,
+        description="rad a camera's view is raised by (a lens shift: the horizon sits below the image centre)",
+    )
 
 
 class WheelPid(_Strict):

@@ -11,7 +11,10 @@ reports changes, so the trace is not a copy of the sensor stream:
   a reading that fails is logged once and the last values kept);
 - ``watch_sonar``: a ``blocked`` flag while the ultrasonic range is below ``threshold`` and what
   it sees is not on the map (a wall or a table the robot is meant to stop at is not an obstacle);
-- ``odometer``: the distance driven, integrated from the odometry's pose increments.
+- ``odometer``: the distance driven, integrated from the odometry's pose increments;
+- ``watch_people``: an ``ahead`` flag while a tracked person stands in the robot's way (within
+  ``distance`` ahead and ``half_width`` either side of its heading), from the people tracking
+  (a people sensor, or faces in a camera) and the robot's pose estimate.
 """
 
 from __future__ import annotations
@@ -132,3 +135,38 @@ class Odometer(Skill):
                     _write(ctx, key, round(total, 2))
         finally:
             _write(ctx, key, round(total, 2))
+
+
+class WatchPeople(Skill):
+    name = "watch_people"
+    description = "Until cancelled: set `ahead_key` while a tracked person stands in the robot's way."
+    inputs = {
+        "distance": In(float, default=3.0, doc="m ahead of the robot within which a person is in its way"),
+        "half_width": In(float, default=0.6, doc="m either side of the robot's heading that count as its way"),
+        "ahead_key": In(str, doc="the bool key: someone stands in front of the robot", names_key="write"),
+        "distance_key": In(
+            str, doc="the float key: the nearest one's distance (m) when `ahead` last changed", names_key="write"
+        ),
+    }
+
+    def run(self, ctx: SkillContext, distance: float, half_width: float, ahead_key: str, distance_key: str) -> SkillRun:
+        if distance <= 0 or half_width <= 0:
+            return Outcome.failure(f"distance and half_width must be positive, got {distance} and {half_width}")
+        tracking = ctx.interface("people_tracking")
+        localization = ctx.interface("localization")
+        ahead: bool | None = None
+        while True:
+            pose = localization.pose()
+            c, s = math.cos(pose.theta), math.sin(pose.theta)
+            nearest = math.inf
+            for _id, x, y in tracking.update().people:
+                forward, side = (x - pose.x) * c + (y - pose.y) * s, -(x - pose.x) * s + (y - pose.y) * c
+                if 0.0 < forward <= distance and abs(side) <= half_width:
+                    nearest = min(nearest, forward)
+            now_ahead = math.isfinite(nearest)
+            if now_ahead != ahead:
+                ahead = now_ahead
+                ctx.logger.info(f"a person {nearest:.1f} m ahead" if now_ahead else "nobody ahead")
+                _write(ctx, distance_key, round(nearest, 2) if now_ahead else 0.0)
+                _write(ctx, ahead_key, now_ahead)
+            yield

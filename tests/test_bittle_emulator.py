@@ -7,8 +7,12 @@ body's pose), with failsafe deadlines, and distances are compared, never duratio
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -23,6 +27,7 @@ from robots.sim.backend import map_path
 from tests.launchpad_helpers import wait_until
 
 OPEN_FLOOR = Pose2D(10.0, 7.0, 0.0)
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _bittle() -> Profile:
@@ -106,3 +111,18 @@ def test_a_replugged_board_gets_the_gait_again(backend: EmulatorBackend) -> None
     walk(backend, 0.1, 0.0, lambda: driver(backend).link.stats()["connects"] == 2 and board(backend).skill == "wkF")
     assert board(backend).first_commands[-1] in ("kbalance", "kwkF")
     assert driver(backend).counters["board_boots"] >= 0  # it may have connected after the boot text
+
+
+def test_the_patrol_mission_runs_over_the_emulator(tmp_path: Path) -> None:
+    """`botstage run missions/bittle_patrol.yaml --backend emulator`: the mission's walk reaches the
+    board as gait tokens and the simulated body walks (a few seconds of it, in real time)."""
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "missions.cli", "run", str(ROOT / "missions" / "bittle_patrol.yaml")]
+    command += ["--backend", "emulator", "--until", "6", "--out", str(out)]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "time_limit"
+    emulator = summary["emulator"]
+    assert emulator["board"]["command_k"] >= 2 and emulator["serial"]["lines_bad"] == {}
+    assert emulator["distance_m"] > 0.2  # it walked

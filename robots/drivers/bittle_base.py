@@ -31,7 +31,7 @@ import logging
 import math
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from typing import Any
 
@@ -81,6 +81,7 @@ class BittleBase:
         self._sent: str | None = None  # the last skill sent, and when
         self._sent_at = -math.inf
         self._acked: str | None = None  # the skill the board confirmed it is in
+        self._awaiting: deque[str] = deque(maxlen=16)  # skills sent and not acknowledged yet, oldest first
         self._refused: set[str] = set()
         self._last_command = -math.inf
         self._moved_at = monotonic()
@@ -148,6 +149,7 @@ class BittleBase:
             if self._sent == skill and self._acked != skill:
                 self.counters["resends"] += 1
             self._sent, self._sent_at = skill, self.monotonic()
+            self._awaiting.append(skill)
             self.counters["tokens_sent"] += 1
 
     # -- the supervisor thread: watchdog and unacknowledged tokens ----------------------------
@@ -178,16 +180,18 @@ class BittleBase:
         with self._lock:
             self._integrate(received)
             match reply:
-                case opencat.Ack(token="k"):
-                    if self._sent is not None and self._acked != self._sent and self._sent not in self._refused:
-                        self._acked = self._sent
-                        self.counters["acks"] += 1
+                case opencat.Ack(token="k"):  # the oldest token in flight is done (the board takes them in order)
+                    if self._awaiting:
+                        skill = self._awaiting.popleft()
+                        if skill not in self._refused:
+                            self._acked = skill
+                            self.counters["acks"] += 1
                     else:
-                        self.counters["acks_unasked"] += 1  # fall recovery, the IR remote, a repeat
+                        self.counters["acks_unasked"] += 1  # fall recovery, the IR remote
                 case opencat.Ack(token=token):
                     self.counters[f"echo_{token}"] += 1
-                case opencat.UnknownSkill():
-                    skill = self._sent
+                case opencat.UnknownSkill():  # about the oldest token in flight (its "k" follows)
+                    skill = self._awaiting[0] if self._awaiting else self._sent
                     self.counters["unknown_skills"] += 1
                     if skill is not None:
                         self._refused.add(skill)
@@ -195,6 +199,7 @@ class BittleBase:
                 case opencat.Ready():
                     self.counters["board_boots"] += 1
                     self._acked = None  # it rests after booting: the wanted skill goes out again
+                    self._awaiting.clear()
                     self._sent_at = -math.inf
                 case opencat.LowBattery(volts=volts):
                     self.counters["low_battery_warnings"] += 1
@@ -208,12 +213,14 @@ class BittleBase:
     def on_connect(self) -> None:
         with self._lock:
             self._acked = None
+            self._awaiting.clear()
             self._sent_at = -math.inf  # the supervisor sends the wanted skill (balance went out already)
 
     def on_disconnect(self) -> None:
         with self._lock:
             self._integrate(self.monotonic())
             self._acked = None  # the robot stands (the link's last try) or has lost power: not walking
+            self._awaiting.clear()
 
     # -- readings -----------------------------------------------------------------------------
 
@@ -258,6 +265,8 @@ class BittleDrive:
 
 
 class BittleOdometry:
+    measured = False  # reckoned from the acknowledged gaits: it cannot tell a blocked robot from a walking one
+
     def __init__(self, base: BittleBase) -> None:
         self.base = base
 

@@ -76,11 +76,12 @@ class EmulatorBackend:
         seed: int,
         clock: Clock,
         people: int = 0,
+        gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
         **emulator_options: Any,
     ) -> None:
         self.clock = clock
         self.lock = threading.Lock()
-        self.world, self.crowd = populated_world(profile, grid, start, seed, people)
+        self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)
         steps = [self.crowd.step] if self.crowd.people else []
         board = board_of(profile)
         if board is None:

@@ -33,6 +33,7 @@ class EmulatorKind(BackendKind):
             request.seed,
             request.clock,
             people=request.people,
+            gatherings=list(request.gatherings),
             counter_start=options.counter_start,
             loop_hz=options.loop_hz,
         )

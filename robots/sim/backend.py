@@ -35,7 +35,7 @@ from robots.sim.world import Bump, World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
 WHEEL_SLIP = 0.02  # the World's default: wheels on a hard floor
-LEGGED_SLIP = 0.1  # decision: feet slip and gaits vary step to step far more than wheels
+LEGGED_SLIP = 0.05  # decision: feet slip and gaits vary step to step more than wheels
 
 
 def known_maps() -> list[str]:

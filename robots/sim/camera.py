@@ -16,8 +16,11 @@ upright on the floor facing the camera. What is drawn, and why:
   the head) to 4 m and more. They are painted far to
   near, each only in the image columns where no wall is nearer than the person.
 
-The camera is level, ``CAMERA_HEIGHT`` above the floor, at the device's pose on the base, with
-square pixels and the principal point at the image centre (``CameraInfo.focal_px``). The view is
+The camera is level, its device's ``mount_height`` above the floor (``CAMERA_HEIGHT`` when the
+profile gives none), at the device's pose on the base, with square pixels. Its view may be
+raised by ``look_up`` radians as a shifted lens raises it (the horizon sits that far below the
+image centre and verticals stay vertical): a low camera, such as the one on Bittle, sees the faces
+of the people standing before it. The focal length is ``CameraInfo.focal_px``. The view is
 a function of the world's state alone (no randomness), except for optional sensor noise: a
 device ``noise`` is the standard deviation in grey levels, drawn from ``world.noise("camera")``.
 """
@@ -77,10 +80,12 @@ class CameraView:
         if not self.fov < math.pi:
             raise ValueError(f"a pinhole camera's field of view must be under pi rad, got {self.fov}")
         self.focal = (self.width / 2) / math.tan(self.fov / 2)
+        self.mount = device.mount_height or CAMERA_HEIGHT
+        self.horizon = self.height / 2 + self.focal * math.tan(device.look_up or 0.0)  # the row at the lens's height
         # the ray through each column's centre, as an angle to the left of the optical axis
         self.offsets = np.arctan((self.width / 2 - (np.arange(self.width) + 0.5)) / self.focal)
         self.axis_cos = np.cos(self.offsets)  # ray length to depth along the optical axis
-        self.background = _background(self.width, self.height, self.focal)
+        self.background = _background(self.width, self.height, self.focal, self.horizon, self.mount)
         self.row_centres = (np.arange(self.height, dtype=np.float32) + 0.5)[:, None]
 
     def camera_pose(self, world: World) -> tuple[float, float, float]:
@@ -106,9 +111,9 @@ class CameraView:
     # -- walls --------------------------------------------------------------------------------
 
     def _walls(self, depth: np.ndarray, along_x: np.ndarray) -> np.ndarray:
-        centre, f = self.height / 2, self.focal
-        top = (centre - f * (WALL_HEIGHT - CAMERA_HEIGHT) / depth).astype(np.float32)
-        bottom = (centre + f * CAMERA_HEIGHT / depth).astype(np.float32)
+        horizon, f = self.horizon, self.focal
+        top = (horizon - f * (WALL_HEIGHT - self.mount) / depth).astype(np.float32)
+        bottom = (horizon + f * self.mount / depth).astype(np.float32)
         shade = (np.where(along_x, 0.72, 1.0) / (1.0 + FOG * depth)).astype(np.float32)
         colours = np.zeros((self.width, 4), np.uint8)
         colours[:, :3] = WALL[None, :] * shade[:, None]
@@ -140,16 +145,16 @@ class CameraView:
     def _figure(self, frame: np.ndarray, depth: np.ndarray, forward: float, u: float, pid: int) -> None:
         """Draw one person into a copy of their bounding box, then keep the columns no wall hides."""
         scale = self.focal / forward  # pixels per metre at the person's depth
-        centre = self.height / 2
+        horizon = self.horizon
         x0 = max(0, math.floor(u - PERSON_HALF_WIDTH * scale))
         x1 = min(self.width, math.ceil(u + PERSON_HALF_WIDTH * scale) + 1)
-        y0 = max(0, math.floor(centre - (PERSON_HEIGHT + 0.05 - CAMERA_HEIGHT) * scale))
-        y1 = min(self.height, math.ceil(centre + CAMERA_HEIGHT * scale) + 1)
+        y0 = max(0, math.floor(horizon - (PERSON_HEIGHT + 0.05 - self.mount) * scale))
+        y1 = min(self.height, math.ceil(horizon + self.mount * scale) + 1)
         visible = depth[x0:x1] > forward
         if x1 <= x0 or y1 <= y0 or not visible.any():
             return
         box = np.ascontiguousarray(frame[y0:y1, x0:x1])
-        draw_person(box, u - x0, centre - y0, scale, pid)
+        draw_person(box, u - x0, horizon - y0, scale, pid, self.mount)
         frame[y0:y1, x0:x1][:, visible] = box[:, visible]
 
 
@@ -174,12 +179,12 @@ def wall_distances(world: World, x: float, y: float, angles: np.ndarray) -> tupl
 
 
 @lru_cache(maxsize=8)
-def _background(width: int, height: int, focal: float) -> np.ndarray:
+def _background(width: int, height: int, focal: float, horizon: float, mount: float) -> np.ndarray:
     """Ceiling above the horizon and floor below, each darker towards it: BGR and a spare byte
     packed in one uint32 a pixel (read-only, shared)."""
-    rows = np.arange(height) + 0.5 - height / 2
-    floor_distance = focal * CAMERA_HEIGHT / np.maximum(rows, 1e-6)
-    ceiling_distance = focal * (WALL_HEIGHT - CAMERA_HEIGHT) / np.maximum(-rows, 1e-6)
+    rows = np.arange(height) + 0.5 - horizon
+    floor_distance = focal * mount / np.maximum(rows, 1e-6)
+    ceiling_distance = focal * (WALL_HEIGHT - mount) / np.maximum(-rows, 1e-6)
     floor = FLOOR[None, :] / (1.0 + FOG * floor_distance[:, None])
     ceiling = CEILING[None, :] / (1.0 + 0.5 * FOG * ceiling_distance[:, None])
     column = np.zeros((height, 4), np.uint8)
@@ -189,15 +194,18 @@ def _background(width: int, height: int, focal: float) -> np.ndarray:
     return image
 
 
-def draw_person(image: np.ndarray, u: float, horizon: float, scale: float, pid: int) -> None:
+def draw_person(
+    image: np.ndarray, u: float, horizon: float, scale: float, pid: int, camera_height: float = CAMERA_HEIGHT
+) -> None:
     """Draw a person facing the camera: ``u`` the image column of their centre line, ``horizon``
-    the row at the camera's height, ``scale`` pixels per metre at their depth. Only cv2 primitives,
+    the row at the camera's height (``camera_height`` m above the floor), ``scale`` pixels per
+    metre at their depth. Only cv2 primitives,
     sized from metres, so one figure serves every distance."""
     k = 1 << SUBPIXEL
 
     def at(side: float, up: float) -> tuple[int, int]:
         """(side m right of the centre line, up m above the floor) to fixed-point pixels."""
-        return round((u + side * scale) * k), round((horizon - (up - CAMERA_HEIGHT) * scale) * k)
+        return round((u + side * scale) * k), round((horizon - (up - camera_height) * scale) * k)
 
     def size(a: float, b: float) -> tuple[int, int]:
         return max(1, round(a * scale * k)), max(1, round(b * scale * k))

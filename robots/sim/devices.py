@@ -375,6 +375,8 @@ class SimGaitDrive:
 class SimGaitOdometry:
     """A legged base's odometry: dead reckoning from the gaits it walked in (no encoders)."""
 
+    measured = False  # reckoned from the commands: it cannot tell a blocked robot from a walking one
+
     def __init__(self, drive: SimGaitDrive, clock: Clock) -> None:
         self.drive = drive
         self.clock = clock

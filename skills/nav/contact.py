@@ -42,13 +42,14 @@ class ContactWatch:
     @classmethod
     def for_robot(cls, interfaces: Mapping[str, Any], clock: Clock) -> ContactWatch | None:
         """A watch on the robot's odometry: its wheels, not the localiser's estimate, which a
-        map correction may move back while the robot creeps forward; None without odometry."""
+        map correction may move back while the robot creeps forward; None without odometry, or
+        when the odometry is reckoned from the commands (``measured = False``), not measured."""
         odometry = interfaces.get("odometry")
         if odometry is None:
             navigation = interfaces.get("navigation")
             odometry = getattr(navigation, "odometry", None)
-        if odometry is None:
-            return None
+        if odometry is None or getattr(odometry, "measured", True) is False:
+            return None  # odometry from the commands themselves (a legged robot's gaits) shows no contact
         return cls(lambda: odometry.read().pose, clock)
 
     @property
