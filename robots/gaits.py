@@ -134,7 +134,7 @@ class GaitOdometry:
     distance along the way and 5 % across it (feet slide), 20 % of the turn, and 0.18 rad per
     square root of a metre walked in heading (decision: a gait's speed changes with the floor and
     the battery by about that much, and a legged robot's heading wanders by about 10 degrees over
-    its first metre; the simulated Bittle's does, with 10 % slip on each side).
+    its first metre, more than the simulated Bittle's, which slips 5 % a step on each side).
     """
 
     SPEED_SHARE = 0.2

@@ -11,8 +11,8 @@ Run with `botstage bench bittle`.
   acknowledgement (``ack_delay_s`` 0: the firmware's own transition time left out), beside the
   same token written with pyserial and its echo read back from the same emulator (no driver).
 - **gait_odometry**: the simulated Bittle walks a 120 s route of every gait and turn (seeded;
-  the body slips 10 % a step); the gait odometry's final position and heading error against the
-  simulator's truth over ``seeds`` runs, and how often the truth lies within the odometry's own
+  the body slips 5 % a step on each side); the gait odometry's final position and heading error
+  against the simulator's truth over ``seeds`` runs, and how often the truth lies within the odometry's own
   95 % bounds (its covariance's ellipse for the position, two standard deviations for the
   heading): an honest covariance gives about 90 % (0.95 squared).
 
