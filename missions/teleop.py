@@ -124,12 +124,43 @@ class TerminalKeys:
             termios.tcsetattr(fd, termios.TCSADRAIN, saved)
 
 
-def status(state: Teleop, odometry: OdometryReading | None = None) -> str:
-    line = f"v {state.v:+.2f} m/s  w {state.w:+.2f} rad/s"
+def status(v: float, w: float, odometry: OdometryReading | None = None) -> str:
+    line = f"v {v:+.2f} m/s  w {w:+.2f} rad/s"
     if odometry is not None:
         pose = odometry.pose
         line += f"  odometry x {pose.x:.2f} y {pose.y:.2f} theta {pose.theta:+.2f}"
     return line
+
+
+def drive_loop(
+    drive: Drive,
+    commands: Callable[[], tuple[float, float] | None],
+    clock: Clock,
+    *,
+    step: Callable[[], None] | None = None,
+    odometry: Odometry | None = None,
+    show: Callable[[str], None] | None = None,
+    until: float | None = None,
+) -> None:
+    """Send ``commands()`` (v, w) every tick until it says None (or ``until`` s of clock time); the
+    robot stops at the end, however it ends. Keys and a gesture controller are both such sources."""
+    shown = ""
+    try:
+        while until is None or clock.now() < until - 1e-9:
+            command = commands()
+            if command is None:
+                break
+            drive.cmd_vel(*command)  # every tick, so the watchdog knows someone is driving
+            if step is not None:
+                step()
+            if show is not None:
+                line = status(*command, odometry.read() if odometry is not None else None)
+                if line != shown:
+                    show(line)
+                    shown = line
+            clock.next_tick()
+    finally:
+        drive.stop()
 
 
 def run_teleop(
@@ -144,20 +175,11 @@ def run_teleop(
     until: float | None = None,
 ) -> Teleop:
     """Drive by keys until quit (or ``until`` seconds of clock time); the robot stops at the end."""
-    shown = ""
-    try:
-        while until is None or clock.now() < until - 1e-9:
-            if not all(state.press(key) for key in keys.read()):
-                break
-            drive.cmd_vel(state.v, state.w)  # every tick, so the watchdog knows someone is driving
-            if step is not None:
-                step()
-            if show is not None:
-                line = status(state, odometry.read() if odometry is not None else None)
-                if line != shown:
-                    show(line)
-                    shown = line
-            clock.next_tick()
-    finally:
-        drive.stop()
+
+    def commands() -> tuple[float, float] | None:
+        if not all(state.press(key) for key in keys.read()):
+            return None
+        return state.v, state.w
+
+    drive_loop(drive, commands, clock, step=step, odometry=odometry, show=show, until=until)
     return state

@@ -89,7 +89,7 @@ def test_a_scripted_session_drives_the_simulated_chefbot_and_stops_it() -> None:
     pose = sim.world.body.pose
     assert pose.x > 10.5 and pose.theta > 0.1
     assert shown[0].startswith("v +0.05 m/s  w +0.00 rad/s  odometry x 10.00")
-    assert status(state) == "v +0.20 m/s  w +0.20 rad/s"
+    assert status(state.v, state.w) == "v +0.20 m/s  w +0.20 rad/s"
 
 
 def test_a_session_ends_at_its_time_limit_and_stops() -> None:

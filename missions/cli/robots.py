@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
+from typing import Any
 
 import typer
 from rich.table import Table
@@ -119,6 +121,48 @@ def emulate(
         emulator.close()
 
 
+def _gesture_teleop(
+    backend: Any,
+    profile: Any,
+    clock: Any,
+    imu_port: str | None,
+    config_file: Path | None,
+    until: float | None,
+    show: Any,
+) -> None:
+    """Drive ``backend``'s robot from the gesture IMU (its emulator unless ``imu_port``) until ``until`` or Ctrl-C."""
+    import contextlib
+
+    from missions.gesture import GestureCommands, load_config
+    from missions.teleop import drive_loop
+    from robots.drivers.rosserial import RosserialDriver
+    from robots.emulators.imu_arduino import ImuArduino
+
+    try:
+        config = load_config(config_file) if config_file is not None else None
+    except ValueError as error:
+        raise _fail(f"error: {error}", 2) from None
+    with contextlib.ExitStack() as stack:
+        if imu_port is None:
+            glove = stack.enter_context(ImuArduino())
+            imu_port = glove.path
+            console.print(f"gesture IMU emulator on {imu_port}: replaying a hand (home, forward, back, left, right)")
+        driver = stack.enter_context(RosserialDriver(imu_port))
+        commands = GestureCommands(driver, profile.base.max_linear, profile.base.max_angular, config)
+        console.print(
+            "tilt forward to speed up, back to slow down, turn the hand to turn; level it to stop; Ctrl-C quits"
+        )
+        drive_loop(
+            backend.devices["drive"],
+            commands,
+            clock,
+            step=backend.step,
+            odometry=backend.devices.get("odometry"),
+            show=show,
+            until=until,
+        )
+
+
 def teleop(
     robot: str = typer.Argument("chefbot", help="the robot's profile"),
     backend: str = typer.Option(DEFAULT, help=backend_help()),
@@ -132,13 +176,26 @@ def teleop(
     rate_hz: float = typer.Option(10.0, "--rate", help="commands a second (at most 1000)", callback=RATE),
     linear_step: float = typer.Option(0.05, help="m/s a key adds", callback=POSITIVE),
     angular_step: float = typer.Option(0.2, help="rad/s a key adds", callback=POSITIVE),
+    input_: str = typer.Option(
+        "keys", "--input", help="keys (the keyboard) or gesture (the book's IMU glove over rosserial)"
+    ),
+    imu_port: str | None = typer.Option(
+        None, help="the gesture IMU's serial port (rosserial, 57600); default: its emulator, replaying a hand"
+    ),
+    gesture_config: Path | None = typer.Option(
+        None, metavar="FILE", help="the chapter's teleop_config.yaml (step_size, low/high speed and turn)"
+    ),
+    until: float | None = typer.Option(None, help="stop after this many seconds (Ctrl-C stops too)", min=0),
 ) -> None:
-    """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits."""
+    """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits;
+    or with the book's gesture controller (--input gesture): tilt forward to speed up, turn the hand to turn."""
     from missions.cli.backends import open_backend
     from missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
     from robots.backend import OpenRequest
     from robots.clock import WallClock
 
+    if input_ not in ("keys", "gesture"):
+        raise typer.BadParameter(f"{input_!r}: keys or gesture", param_hint="'--input'")
     profile, grid, pose = _robot_place(robot, world, start)
     clock = WallClock(rate_hz)
     request = OpenRequest(profile, pose, clock, seed=seed, grid=grid)
@@ -158,7 +215,9 @@ def teleop(
             console.print(line, highlight=False)
 
     try:
-        if interactive:
+        if input_ == "gesture":
+            _gesture_teleop(robot_backend, profile, clock, imu_port, gesture_config, until, show)
+        elif interactive:
             with TerminalKeys.opened() as keys:
                 console.print(HELP, highlight=False)  # once keys are read one by one: none typed is lost
                 run_teleop(
@@ -169,6 +228,7 @@ def teleop(
                     step=robot_backend.step,
                     odometry=devices.get("odometry"),
                     show=show,
+                    until=until,
                 )
         else:
             console.print(HELP, highlight=False)
@@ -180,6 +240,7 @@ def teleop(
                 step=robot_backend.step,
                 odometry=devices.get("odometry"),
                 show=show,
+                until=until,
             )
     except KeyboardInterrupt:
         pass
