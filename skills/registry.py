@@ -43,6 +43,7 @@ BUILTIN_MODULES = (
     "skills.wait_for",
     "skills.orders",
     "skills.monitors",
+    "skills.gesture_drive",
 )
 
 

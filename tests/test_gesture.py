@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from missions.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
+from skills.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
 from missions.places import robot_place
 from missions.teleop import drive_loop
 from robots.clock import SimClock

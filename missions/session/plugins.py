@@ -32,6 +32,7 @@ BUILTIN_SERVICES = (
     "uploads = missions.session.services:UploadsService",
     "files = missions.session.services:FilesService",
     "orders = missions.session.services:OrdersService",
+    "gesture = missions.session.services:GestureService",
 )
 
 Factory = Callable[[], Any]

@@ -101,3 +101,23 @@ class OrdersService:
 
     def close(self) -> None:
         """Nothing to release: orders are files, read when a skill asks."""
+
+
+class GestureService:
+    """gesture: the book's IMU glove (missions/gesture_glove.py), opened only when a skill reads it."""
+
+    name = "gesture"
+
+    def __init__(self) -> None:
+        self.glove: Any = None
+
+    def open(self, session: RunSession) -> Mapping[str, Any]:
+        from missions.gesture_glove import glove_for
+
+        self.glove = glove_for(session.clock)
+        return {"gesture": self.glove}
+
+    def close(self) -> None:
+        close = getattr(self.glove, "close", None)
+        if close is not None:
+            close()
