@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from skills.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
 from missions.places import robot_place
 from missions.teleop import drive_loop
 from robots.clock import SimClock
 from robots.drivers.rosserial import RosserialDriver
 from robots.emulators.imu_arduino import HandScript, ImuArduino
 from robots.sim.backend import SimBackend
+from skills.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
 from tests.launchpad_helpers import wait_until
 
 

@@ -133,10 +133,10 @@ def _gesture_teleop(
     """Drive ``backend``'s robot from the gesture IMU (its emulator unless ``imu_port``) until ``until`` or Ctrl-C."""
     import contextlib
 
-    from skills.gesture import GestureCommands, load_config
     from missions.teleop import drive_loop
     from robots.drivers.rosserial import RosserialDriver
     from robots.emulators.imu_arduino import ImuArduino
+    from skills.gesture import GestureCommands, load_config
 
     try:
         config = load_config(config_file) if config_file is not None else None
