@@ -21,7 +21,7 @@ faces it would turn back and forth between them).
 
 Beyond the chapter: a proportional step (``gain`` rad per pixel of the face's offset from the
 centre, at most ``max_step`` a frame), which re-centres a face far off faster than 0.01 rad a
-frame can, as an option beside the fixed step (``botstage bench facetracker`` measures both).
+frame can, as an option beside the fixed step (not yet measured against it on a simulated head).
 """
 
 from __future__ import annotations
