@@ -177,7 +177,15 @@ def test_a_service_gives_an_interface_and_runs_after_the_robot_services(tmp_path
     session = RunSession(DRIVE_DEMO, until=2, out=tmp_path, services=services)
     result = session.run()
     assert session.engine is not None and session.engine.interfaces["beacon"] is session.services[-1]
-    assert list(session.interfaces)[-6:] == ["localization", "navigation", "uploads", "files", "orders", "beacon"]
+    assert list(session.interfaces)[-7:] == [
+        "localization",
+        "navigation",
+        "uploads",
+        "files",
+        "orders",
+        "gesture",
+        "beacon",
+    ]
     assert result.summary["beacon"] == {"ticks": result.summary["ticks"], "closed": True}
     assert Beacon.order[:4] == ["robot", "beacon", "robot", "beacon"]
     assert "localization" in result.summary  # the robot service's block
@@ -187,7 +195,7 @@ def test_a_robot_less_mission_has_no_robot_services(tmp_path: Path) -> None:
     session = RunSession(HELLO, until=1, out=tmp_path)
     session.run()
     assert session.backend is None
-    assert list(session.interfaces) == ["uploads", "files", "orders"]
+    assert list(session.interfaces) == ["uploads", "files", "orders", "gesture"]
 
 
 def test_plugin_registries_record_broken_entries(monkeypatch: pytest.MonkeyPatch) -> None:

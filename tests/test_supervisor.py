@@ -12,9 +12,9 @@ FAILSAFE_S = 60.0
 
 SERVE = """
 import signal, sys, threading
-print("ready", flush=True)
 stop = threading.Event()
 signal.signal(signal.SIGINT, lambda *_: stop.set())
+print("ready", flush=True)
 stop.wait(120)
 print("stopped cleanly", flush=True)
 """

@@ -13,22 +13,37 @@ from py_trees.common import Status
 from behaviors.machine import MachineBehaviour, failure_reason
 
 
-@contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM stops a run as cleanly as Ctrl-C does (skills cancelled, motors stopped)."""
+class SigtermLatch:
+    """SIGTERM stops a run as cleanly as Ctrl-C does (skills cancelled, motors stopped), from the
+    moment the run starts opening things: one that comes before the first tick is held and ends
+    the run there (``pending``), so nothing is left half open and the results are still written."""
 
-    def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+    def __init__(self) -> None:
+        self.armed = False  # in the tick loop: raise at once
+        self.pending = False
 
-    try:
-        previous = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    def _handler(self, signum: int, frame: Any) -> None:
+        if self.armed:
+            raise KeyboardInterrupt
+        self.pending = True
+
+    @contextmanager
+    def installed(self) -> Iterator[None]:
+        try:
+            previous = signal.signal(signal.SIGTERM, self._handler)
+        except ValueError:  # not the main thread: leave signals alone
+            yield
+            return
+        try:
+            yield
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+
+    def arm(self) -> None:
+        """From now on a SIGTERM interrupts; one that came already does so now."""
+        self.armed = True
+        if self.pending:
+            raise KeyboardInterrupt
 
 
 def outcome(

@@ -29,7 +29,7 @@ from behaviors.suggest import did_you_mean
 from behaviors.trace import Trace, jsonable
 from missions.check import Checked, build_root, check, root_spec_path, start_pose
 from missions.schema import Mission
-from missions.session.ending import outcome, sigterm_as_interrupt
+from missions.session.ending import SigtermLatch, outcome
 from missions.session.errors import MissionInvalid, RunError, StopRun
 from missions.session.observer import Hooks
 from missions.session.observers import (
@@ -83,6 +83,7 @@ class RunSession:
         self.backend_name = backend
         self.realtime = realtime
         self.out = out
+        self._sigterm = SigtermLatch()  # SIGTERM ends the run cleanly from the moment it opens anything
         self.registry = registry
         self.kinds = kinds
         self.overrides = blackboard
@@ -159,13 +160,14 @@ class RunSession:
 
     def run(self) -> RunResult:
         self.check()
-        self.open_backend()
-        try:
-            self.open_services()
-            self.build()
-            self.loop()
-        finally:
-            self.shut_down()
+        with self._sigterm.installed():
+            self.open_backend()
+            try:
+                self.open_services()
+                self.build()
+                self.loop()
+            finally:
+                self.shut_down()
         return self.write_results()
 
     def check(self) -> None:
@@ -305,30 +307,32 @@ class RunSession:
         assert engine is not None and self.root is not None
         interrupted, stopped = False, ""
         try:
-            with sigterm_as_interrupt():
-                while until is None or clock.now() < until - 1e-9:
-                    self.hooks.run("before_tick", self)
-                    self.status = engine.tick()
-                    try:
-                        if self.backend is not None:
-                            self.backend.step()  # the world moves over the tick just decided
-                        self.hooks.run("after_tick", self)  # then estimates update, uploads settle, displays
-                    except (StopRun, KeyboardInterrupt):
-                        raise
-                    except Exception as exc:  # a robot that stopped reporting, a lost peer: the run ends, said
-                        engine.error = f"after tick {clock.ticks}: {type(exc).__name__}: {exc}"
-                        engine.trace.emit("error", engine.error)
-                        engine.halt(f"engine error: {engine.error}")
-                        self.status = Status.FAILURE
-                        break
-                    if self.status in DONE:
-                        break
+            self._sigterm.arm()
+            while until is None or clock.now() < until - 1e-9:
+                self.hooks.run("before_tick", self)
+                self.status = engine.tick()
+                try:
+                    if self.backend is not None:
+                        self.backend.step()  # the world moves over the tick just decided
+                    self.hooks.run("after_tick", self)  # then estimates update, uploads settle, displays
+                except (StopRun, KeyboardInterrupt):
+                    raise
+                except Exception as exc:  # a robot that stopped reporting, a lost peer: the run ends, said
+                    engine.error = f"after tick {clock.ticks}: {type(exc).__name__}: {exc}"
+                    engine.trace.emit("error", engine.error)
+                    engine.halt(f"engine error: {engine.error}")
+                    self.status = Status.FAILURE
+                    break
+                if self.status in DONE:
+                    break
         except KeyboardInterrupt:
             interrupted = True
             engine.halt("interrupted by the operator")
         except StopRun as stop:
             stopped = stop.reason
             engine.halt(stop.reason)
+        finally:
+            self._sigterm.armed = False  # shutting down: a second SIGTERM must not cut the cleanup short
         self.outcome, self.reason = outcome(engine.error, self.root, until, interrupted)
         if stopped:
             self.outcome, self.reason = "stopped_by_test", stopped
