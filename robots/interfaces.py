@@ -217,6 +217,24 @@ class Display(Protocol):
         """Show a named screen layout (e.g. the PeopleBot tablet's Layout_1) with its content."""
 
 
+@runtime_checkable
+class Pan(Protocol):
+    """A camera's pan joint (the face tracker's AX-12A): angles in rad, positive turns the camera left
+    (counter-clockwise seen from above), within ``min_angle``..``max_angle``."""
+
+    @property
+    def min_angle(self) -> float: ...
+
+    @property
+    def max_angle(self) -> float: ...
+
+    def move_to(self, angle: float) -> bool:
+        """Send the joint towards ``angle`` (clamped to its limits) at its own speed; False if not sent."""
+
+    def position(self) -> float | None:
+        """The joint's present angle, or None when it cannot be read (unplugged)."""
+
+
 INTERFACES: dict[str, type] = {
     "drive": Drive,
     "odometry": Odometry,
@@ -229,6 +247,7 @@ INTERFACES: dict[str, type] = {
     "microphone": Microphone,
     "speaker": Speaker,
     "display": Display,
+    "pan": Pan,
 }
 
 
