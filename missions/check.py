@@ -36,6 +36,9 @@ from robots.clock import SimClock
 from skills.base import check_type, plain_type, type_name
 from skills.registry import Registry
 
+if typing.TYPE_CHECKING:
+    from robots.gridmap import GridMap
+
 
 @dataclass
 class Checked:
@@ -263,8 +266,43 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
         out.at(("world",), "a world needs a robot to put in it")
     if mission.people and mission.world is None:
         out.at(("people",), "simulated people need a world to walk in")
+    elif mission.walks and mission.world is None:
+        out.at(("walks",), "walking people need a world to walk in")
     elif mission.world is not None:
         _check_world(mission, path, out)
+
+
+def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
+    """Each walk's points are places of the map or [x, y], and a person fits all along its path
+    (free floor, a person's radius from walls), so a walker is never stuck where it was sent."""
+    from robots.sim.people import first_blocked, standable
+
+    room = standable(grid) if mission.walks else None
+    for index, walk in enumerate(mission.walks):
+        points: list[tuple[float, float]] = []
+        for number, point in enumerate(walk.path):
+            where = ("walks", index, "path", number)
+            if isinstance(point, str):
+                if point not in grid.places:
+                    out.at(where, f"the map has no place {point!r}", did_you_mean(point, grid.places))
+                    break
+                points.append((float(grid.places[point][0]), float(grid.places[point][1])))
+            elif len(point) != 2:
+                out.at(where, "a walk's point is a place's name or [x, y]")
+                break
+            else:
+                points.append((float(point[0]), float(point[1])))
+        else:
+            if walk.repeat > 1:
+                points.append(points[0])  # the way back to the start between rounds
+            blocked = first_blocked(grid, points, room)
+            if blocked is not None:
+                towards, x, y = blocked
+                where = ("walks", index, "path", towards % len(walk.path))  # the way back leads to the first
+                out.at(
+                    where,
+                    f"a person cannot walk through ({x:.2f}, {y:.2f}): a wall, or less than a person's width from one",
+                )
 
 
 def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
@@ -294,6 +332,7 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
             out.at(where, "a gathering's place is a name or [x, y]")
         elif not grid.is_free(gathering.at[0], gathering.at[1]):
             out.at(where, f"({gathering.at[0]:g}, {gathering.at[1]:g}) is not free floor on the map")
+    _check_walks(mission, grid, out)
     needed = sum(g.size for g in mission.gatherings)
     if needed > mission.people:
         out.at(("gatherings",), f"the gatherings need {needed} people; `people:` is {mission.people}")

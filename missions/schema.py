@@ -35,6 +35,22 @@ class Gathering(BaseModel):
     stay: float = Field(default=120.0, gt=0, le=MAX_SECONDS, description=f"seconds they stay once there; {_DAYS}")
 
 
+class Walk(BaseModel):
+    """A simulated person who walks a given path and nothing else (a face tracker's test subject):
+    standing at the first point until ``at``, then point to point at ``speed``, ``repeat`` times
+    round (back from the last point to the first between rounds), ``pause`` s at each point, and
+    standing at the last point once done. Never sent elsewhere by the crowd's wandering or groups."""
+
+    model_config = _CONFIG
+    path: list[str | list[float]] = Field(
+        min_length=2, max_length=1000, description="the points walked through: named places of the map, or [x, y]"
+    )
+    speed: float = Field(default=1.0, gt=0, le=3.0, description="m/s (1.0: an unhurried walk; 3 m/s is running)")
+    at: float = Field(default=0.0, ge=0, le=MAX_SECONDS, description=f"mission seconds when they set off; {_DAYS}")
+    repeat: int = Field(default=1, ge=1, le=10_000, description="rounds of the path")
+    pause: float = Field(default=0.0, ge=0, le=MAX_SECONDS, description=f"seconds they stand at each point; {_DAYS}")
+
+
 VOICE_COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")  # what the simulator's voice clips say
 
 
@@ -101,6 +117,11 @@ class Mission(BaseModel):
     people: int = Field(default=0, ge=0, le=500, description="simulated people walking on the map (simulation only)")
     gatherings: list[Gathering] = Field(
         default_factory=list, description="groups the simulated people form on cue (scenario tests, demos)"
+    )
+    walks: list[Walk] = Field(
+        default_factory=list,
+        max_length=100,
+        description="people who walk a given path (simulation only; e.g. across a face tracker's view)",
     )
     voices: VoiceSettings = Field(
         default_factory=VoiceSettings, description="how the simulated people speak to the robot"

@@ -28,6 +28,21 @@ if TYPE_CHECKING:  # kept light: listing the backends (the CLI's --help) loads n
 ENTRY_POINT_GROUP = "botstage.backends"
 
 Gathering = tuple[float, tuple[float, float], int, float]  # (time, centre, size, stay) of a scripted crowd
+
+
+@dataclass(frozen=True)
+class ScriptedWalk:
+    """A simulated person who walks ``path`` (points in metres, on the map) at ``speed`` m/s from
+    mission time ``at``, ``repeat`` times round, standing ``pause`` s at each point (a mission's
+    ``walks:``; robots/sim/people.py walks it)."""
+
+    path: tuple[tuple[float, float], ...]
+    speed: float = 1.0
+    at: float = 0.0
+    repeat: int = 1
+    pause: float = 0.0
+
+
 Fault = Callable[..., None]  # injects one fault now; its docstring says what it does and takes
 
 
@@ -42,6 +57,7 @@ class OpenRequest:
     grid: GridMap | None = None  # the map the robot is on (needed by simulated worlds and localisation)
     people: int = 0  # simulated people walking about
     gatherings: tuple[Gathering, ...] = ()
+    walks: tuple[ScriptedWalk, ...] = ()  # simulated people who walk a given path
     voices: Mapping[str, Any] | None = None  # the simulator's voice settings (None: its defaults)
 
 

@@ -44,6 +44,7 @@ BUILTIN_MODULES = (
     "skills.orders",
     "skills.monitors",
     "skills.gesture_drive",
+    "skills.track_face",
 )
 
 

@@ -154,7 +154,12 @@ def test_a_profile_backends_section_must_be_a_mapping_of_mappings(tmp_path: Path
 def test_port_is_a_shortcut_for_the_port_option_and_refused_where_there_is_none() -> None:
     hardware = BackendRegistry.default().get("hardware")
     given = OptionSources({"ready_timeout": 1}, port="/dev/ttyACM0")
-    assert resolve(hardware, given=given).model_dump() == {"port": "/dev/ttyACM0", "ready_timeout": 1.0, "baud": 115200}
+    assert resolve(hardware, given=given).model_dump() == {
+        "port": "/dev/ttyACM0",
+        "ready_timeout": 1.0,
+        "baud": 115200,
+        "camera": None,
+    }
     with pytest.raises(BackendError, match=r"backend 'sim' has no option 'port' \(from --port"):
         resolve(BackendRegistry.default().get("sim"), given=OptionSources(port="/dev/ttyACM0"))
 

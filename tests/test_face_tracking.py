@@ -33,8 +33,8 @@ def test_at_the_limit_the_position_is_held_and_sent_not_wound_up() -> None:
 
 def test_the_proportional_step_is_bigger_far_from_the_centre_and_bounded() -> None:
     near, far = PanController(gain=0.0005), PanController(gain=0.0005)
-    assert near.update(380) == pytest.approx(-0.005)  # 10 px past the band
-    assert far.update(640) == pytest.approx(-0.1)  # 270 px past it: 0.135, bounded to 0.1
+    assert near.update(380) == pytest.approx(-0.03)  # 60 px off the centre, 10 px past the band
+    assert far.update(640) == pytest.approx(-0.1)  # 320 px off: 0.16, bounded to 0.1
     assert PanController(gain=0.0005).update(None) == 0.0  # no face: stay
 
 

@@ -55,5 +55,5 @@ def test_backends_are_checked_against_the_protocols() -> None:
     assert check_interfaces({"microphone": Deaf(), "jetpack": Motors()}) == [
         "interface 'microphone': Deaf does not provide Microphone",
         "unknown interface 'jetpack' (known: drive, odometry, imu, laser, sonar, battery, people, camera, "
-        "microphone, speaker, display)",
+        "microphone, speaker, display, pan)",
     ]

@@ -13,7 +13,7 @@ CHEFBOT = Path("robots/profiles/chefbot.yaml")
 
 
 def test_shipped_profiles_load_with_the_books_figures() -> None:
-    assert known_profiles() == ["bittle", "chefbot", "peoplebot"]
+    assert known_profiles() == ["bittle", "chefbot", "face_tracker", "peoplebot"]
     chefbot, problems, _ = load_profile(CHEFBOT)
     assert problems == [] and chefbot is not None
     base = chefbot.base
@@ -67,7 +67,7 @@ def broken(tmp_path: Path, old: str, new: str) -> list[str]:
             "  battery: {hardware: launchpad}",
             "  jetpack: {hardware: launchpad}",
             "bot.yaml:35:3: error: unknown interface 'jetpack' (known: drive, odometry, imu, laser, sonar, battery, "
-            "people, camera, microphone, speaker, display)",
+            "people, camera, microphone, speaker, display, pan)",
         ),
         (
             "range_min: 0.02, range_max: 4.0",

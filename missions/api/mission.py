@@ -38,6 +38,7 @@ FIELDS = (
     "start",
     "people",
     "gatherings",
+    "walks",
     "voices",
     "seed",
     "rate_hz",
@@ -53,6 +54,7 @@ FIELDS = (
 )
 COLLECTIONS: dict[str, type] = {  # empty is the default: not written
     "gatherings": list,
+    "walks": list,
     "keys": dict,
     "blackboard": dict,
     "skill_params": dict,
@@ -83,6 +85,7 @@ class Mission:
     start: str | list[float] | None
     people: int | None
     gatherings: list[Any]
+    walks: list[Any]
     voices: dict[str, Any] | None
     seed: int | None
     rate_hz: float | None
@@ -106,6 +109,7 @@ class Mission:
         start: str | Iterable[float] | None = None,
         people: int | None = None,
         gatherings: Iterable[Mapping[str, Any]] | None = None,
+        walks: Iterable[Mapping[str, Any]] | None = None,
         voices: Mapping[str, Any] | None = None,
         seed: int | None = None,
         rate_hz: float | None = None,

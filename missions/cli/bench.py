@@ -69,6 +69,16 @@ def bench_bittle(quick: bool = typer.Option(False, help="fewer commands and seed
         _stderr([f"target missed: {', '.join(missed)}"])
 
 
+@bench_app.command("facetracker")
+def bench_facetracker(quick: bool = typer.Option(False, help="fewer frames, one walking speed: a smoke test")) -> None:
+    """The face tracker: detection rate at 640x480; pixel error on a walk and re-centring, fixed vs proportional."""
+    from missions.bench import bench_facetracker as bench
+
+    missed = bench.missed(bench.main(quick=quick))
+    if missed and not quick:
+        _stderr([f"target missed: {', '.join(missed)}"])
+
+
 @bench_app.command("upload")
 def bench_upload(quick: bool = typer.Option(False, help="fewer photos: a smoke test, not figures to quote")) -> None:
     """Photos through the durable outbox to the local gallery against a plain HTTP POST; the paper's 3.26 MB photo."""

@@ -42,7 +42,7 @@ from missions.session.observers import (
 from missions.session.plugins import PluginError, PluginRegistry, service_registry
 from missions.session.result import RunResult
 from missions.session.summary import SummaryFileObserver, SummaryObserver
-from robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest
+from robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest, ScriptedWalk
 from robots.backend_options import OptionSources, resolve
 from robots.backend_registry import DEFAULT, BackendRegistry, open_kind
 from robots.clock import Clock, SimClock, WallClock
@@ -260,6 +260,12 @@ class RunSession:
             (g.time, tuple(grid.places[g.at][:2]) if isinstance(g.at, str) else (g.at[0], g.at[1]), g.size, g.stay)
             for g in mission.gatherings
         )
+        walks = tuple(
+            ScriptedWalk(
+                tuple(_point(grid, point) for point in w.path), speed=w.speed, at=w.at, repeat=w.repeat, pause=w.pause
+            )
+            for w in mission.walks
+        )
         return OpenRequest(
             profile,
             start,
@@ -268,6 +274,7 @@ class RunSession:
             grid=grid,
             people=mission.people,
             gatherings=gatherings,
+            walks=walks,
             voices=mission.voices.model_dump(),
         )
 
@@ -366,6 +373,14 @@ class RunSession:
         result = RunResult(self.outcome, self.reason, self.folder, {}, self.final_blackboard, ended)
         self.hooks.run("finished", self, result)
         return result
+
+
+def _point(grid: GridMap, point: str | list[float]) -> tuple[float, float]:
+    """A walk's point: a named place of the map, or [x, y] (checked before the run)."""
+    if isinstance(point, str):
+        x, y = grid.places[point][:2]
+        return float(x), float(y)
+    return float(point[0]), float(point[1])
 
 
 def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> py_trees.behaviour.Behaviour:

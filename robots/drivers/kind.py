@@ -1,4 +1,8 @@
-"""Real hardware as a registered backend kind: the robot's drivers on its serial port."""
+"""Real hardware as a registered backend kind: the robot's drivers on its serial port.
+
+A robot whose only moving part is a Dynamixel pan (the face tracker) opens ``PanHeadBackend``
+(robots/drivers/pan_head.py): its servo on ``port`` at ``baud``, its webcam from ``camera``;
+every other robot the board that drives its base (``SerialBackend``)."""
 
 from __future__ import annotations
 
@@ -12,6 +16,9 @@ class HardwareOptions(BackendOptions):
     port: str = Field(description="the robot's serial port, e.g. /dev/ttyACM0")
     ready_timeout: float = Field(default=5.0, gt=0, description="seconds to wait for the board's first readings")
     baud: int = Field(default=BAUD, gt=0, description="the serial line's speed")
+    camera: str | None = Field(
+        default=None, description="a webcam on the PC (usb_cam): a V4L device path or an index, e.g. /dev/video0"
+    )
 
 
 class HardwareKind(BackendKind):
@@ -22,8 +29,20 @@ class HardwareKind(BackendKind):
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
         from robots.drivers.backend import SerialBackend  # pyserial loads only when used
+        from robots.drivers.pan_head import PanHeadBackend, pan_only
 
         assert isinstance(options, HardwareOptions)
+        if pan_only(request.profile):  # the face tracker: its servo on the port, its webcam on the PC
+            return PanHeadBackend(
+                request.profile,
+                request.clock,
+                options.port,
+                request.start,
+                grid=request.grid,
+                ready_timeout=options.ready_timeout,
+                baud=options.baud,
+                camera=options.camera,
+            )
         return SerialBackend(
             request.profile,
             request.clock,

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from robots.backend import Fault
+from robots.backend import Fault, ScriptedWalk
 from robots.clock import Clock
 from robots.drivers.backend import SerialBackend, board_of
 from robots.drivers.bittle_base import NYBOARD
@@ -77,11 +77,12 @@ class EmulatorBackend:
         clock: Clock,
         people: int = 0,
         gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
+        walks: list[ScriptedWalk] | None = None,
         **emulator_options: Any,
     ) -> None:
         self.clock = clock
         self.lock = threading.Lock()
-        self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)
+        self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings, walks)
         steps = [self.crowd.step] if self.crowd.people else []
         board = board_of(profile)
         if board is None:

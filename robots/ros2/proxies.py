@@ -4,7 +4,8 @@ Each sensor proxy keeps the newest message of its topic, converted into the read
 (robots/ros2/readings.py, botstage_messages.py) and stamped when it arrived, on the run's clock:
 the robot's own stamps are on its clock (simulated, or the system's), which a mission cannot
 compare with its own. Command proxies publish: the drive a Twist (``stop`` a zero one), the
-speaker the text to say, the display its layout as JSON.
+speaker the text to say, the display its layout as JSON, a pan its goal angle (and reads where the
+joint is from ``joint_states``).
 
 A reading older than its bound is stale, and reading it raises ``StaleReadingError`` with the
 topic and the age: a skill fails with that reason instead of acting on an old scan, and a
@@ -281,3 +282,36 @@ class DisplayProxy:
     def show(self, layout: str, **content: str) -> None:
         self.publisher.publish(own.display_message(layout, dict(content)))
         self.shown.append((self.clock.now(), layout, dict(content)))
+
+
+class PanProxy:
+    """A pan joint on the graph: goals published (clamped to the profile's limits, as the robot
+    clamps them too), the position read from the newest joint state; None when that is stale, as
+    a servo that cannot be read says."""
+
+    def __init__(self, publisher: Publisher, state: Latest, min_angle: float, max_angle: float) -> None:
+        self.publisher, self.state = publisher, state
+        self._min, self._max = min_angle, max_angle
+        self.sent = 0
+
+    @property
+    def min_angle(self) -> float:
+        return self._min
+
+    @property
+    def max_angle(self) -> float:
+        return self._max
+
+    def move_to(self, angle: float) -> bool:
+        if not math.isfinite(angle):
+            raise ValueError(f"angle {angle}: a finite number of radians")
+        self.publisher.publish(readings.command_message(min(max(angle, self._min), self._max)))
+        self.sent += 1
+        return True
+
+    def position(self) -> float | None:
+        try:
+            value, _ = self.state.get()
+        except StaleReadingError:
+            return None
+        return float(value)

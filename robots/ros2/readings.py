@@ -280,6 +280,46 @@ def battery_of(message: Any) -> BatteryState:
     )
 
 
+# -- a pan joint -----------------------------------------------------------------------------------
+
+
+def command_message(value: float) -> Any:
+    """std_msgs/Float64: a joint's goal angle in rad (the book's ``pan_controller/command``)."""
+    _finite("a joint command", value)
+    return _type("std_msgs/msg/Float64")(data=float(value))
+
+
+def command_of(message: Any) -> float:
+    _finite("a joint command's data", message.data)
+    return float(message.data)
+
+
+def joint_state_message(name: str, position: float, stamp: float) -> Any:
+    """sensor_msgs/JointState of one joint's position (rad); velocity and effort left empty, as a
+    position-only joint_state_broadcaster leaves them."""
+    _finite("a joint position", position)
+    return _type("sensor_msgs/msg/JointState")(
+        header=header(stamp, ""),
+        name=[name],
+        position=np.array([float(position)], dtype=np.float64),
+        velocity=np.zeros(0, dtype=np.float64),
+        effort=np.zeros(0, dtype=np.float64),
+    )
+
+
+def joint_position_of(message: Any, name: str) -> float:
+    """The position of joint ``name`` in a JointState (which may list other joints too)."""
+    names = list(message.name)
+    if name not in names:
+        raise ValueError(f"joint state without {name!r} (joints: {', '.join(names) or 'none'})")
+    index = names.index(name)
+    if index >= len(message.position):
+        raise ValueError(f"joint state names {name!r} but gives no position for it")
+    position = float(message.position[index])
+    _finite(f"joint {name!r}'s position", position)
+    return position
+
+
 # -- camera ----------------------------------------------------------------------------------------
 
 

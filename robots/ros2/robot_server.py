@@ -2,7 +2,7 @@
 
 Each interface the profile lists becomes its topics (robots/ros2/topics.py): readings are read
 from the devices and published at their rates, as ROS 2's standard messages where there is one;
-commands (``cmd_vel``, ``say``, ``display``) are received on Zenoh's threads, queued, and applied
+commands (``cmd_vel``, ``say``, ``display``, a pan's goal) are received on Zenoh's threads, queued, and applied
 by the robot's own loop, so devices are only ever touched from one thread. The drive's velocity
 watchdog lives here (robots/ros2/watchdog.py): whatever happens to whoever drives, the robot
 stops.
@@ -102,6 +102,7 @@ class RobotServer:
         self._twist: Twist2D | None = None
         self._said: deque[str] = deque(maxlen=QUEUED_MAX)
         self._shown: deque[tuple[str, dict[str, str]]] = deque(maxlen=QUEUED_MAX)
+        self._pan_goal: float | None = None  # the newest goal only: a joint goes where it was last told
         self._failing: set[str] = set()  # channels whose device raised, logged once until it reads again
         self._closed = False
         self.routes = [r for r in routes if r.channel.interface in self.devices]
@@ -112,7 +113,7 @@ class RobotServer:
             r.key: node.publisher(r.topic, r.channel.type_name, r.channel.qos) for r in self.readings
         }
         self.clock_publisher = node.publisher(CLOCK_TOPIC, CLOCK_TYPE, CLOCK_QOS) if publish_clock else None
-        commands = {"drive": self._on_twist, "speaker": self._on_say, "display": self._on_display}
+        commands = {"drive": self._on_twist, "speaker": self._on_say, "display": self._on_display, "pan": self._on_pan}
         for route in self.routes:
             if route.channel.direction is Direction.COMMAND:
                 node.subscription(route.topic, route.channel.type_name, commands[route.key], route.channel.qos)
@@ -157,8 +158,17 @@ class RobotServer:
             ),
             "microphone": lambda: self._audio(device.read()),
             "speaking": lambda: own.flag_message(device.busy()),
+            "pan_state": lambda: self._joint_state(device.position()),
         }
         return readers[route.key]
+
+    def _joint_state(self, position: float | None) -> Any | None:
+        """The pan's position as a JointState; nothing while the servo cannot be read."""
+        if position is None:
+            return None
+        joint = self.backend.profile.interfaces["pan"].joint
+        name = joint.name if joint is not None else "pan_joint"
+        return readings.joint_state_message(name, position, self.stamp(self.clock.now()))
 
     def _image(self, frame: Any) -> Any | None:
         return None if frame is None else readings.image_message(frame, self.stamp(self.clock.now()))
@@ -203,13 +213,26 @@ class RobotServer:
             self._shown.append(shown)
             self.counts["display"] += 1
 
+    def _on_pan(self, message: Any, _: Attachment) -> None:
+        try:
+            goal = readings.command_of(message)
+        except ValueError as error:
+            with self._lock:
+                self.counts["pan_rejected"] += 1
+            log.warning("pan command ignored: %s", error)
+            return
+        with self._lock:
+            self._pan_goal = goal
+            self.counts["pan"] += 1
+
     # -- the tick -----------------------------------------------------------------------------------
 
     def take_commands(self) -> None:
-        """Apply what arrived since the last tick (the newest velocity, every text and layout), then
-        check the watchdog."""
+        """Apply what arrived since the last tick (the newest velocity and pan goal, every text and
+        layout), then check the watchdog."""
         with self._lock:
             twist, self._twist = self._twist, None
+            pan_goal, self._pan_goal = self._pan_goal, None
             said, shown = list(self._said), list(self._shown)
             self._said.clear()
             self._shown.clear()
@@ -220,6 +243,8 @@ class RobotServer:
             self._due["speaking"] = self.clock.now()  # say so at once: a mission waits on it
         for layout, content in shown:
             self.devices["display"].show(layout, **content)
+        if pan_goal is not None:
+            self.devices["pan"].move_to(pan_goal)  # the device clamps it to the joint's limits
         self.check_watchdog()
 
     def check_watchdog(self) -> Trip | None:

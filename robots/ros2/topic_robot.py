@@ -20,7 +20,7 @@ from robots.backend import Fault, OpenRequest
 from robots.clock import Clock
 from robots.gridmap import GridMap
 from robots.interfaces import CameraInfo, Pose2D
-from robots.profile import Profile
+from robots.profile import Device, Profile
 from robots.ros2 import botstage_messages as own
 from robots.ros2 import readings
 from robots.ros2.names import fully_qualified_name
@@ -37,6 +37,7 @@ from robots.ros2.proxies import (
     Latest,
     MicrophoneProxy,
     OdometryProxy,
+    PanProxy,
     PeopleProxy,
     SonarProxy,
     SpeakerProxy,
@@ -107,6 +108,7 @@ class Ros2Backend:
             "people": own.people_of,
             "microphone": lambda message: self.audio.heard(own.audio_of(message)),
             "speaking": lambda message: bool(message.data),
+            "pan_state": lambda message: readings.joint_position_of(message, self._joint_name()),
         }[route.key]
         period = route.period or 0.0
         bound = max(self.options.stale_after, STALE_PERIODS * period)
@@ -145,7 +147,14 @@ class Ros2Backend:
             )
         if interface == "display":
             return DisplayProxy(self._publisher("display"), self.clock)
+        if interface == "pan":
+            low, high = joint_limits(spec)
+            return PanProxy(self._publisher("pan"), latest["pan_state"], low, high)
         return None
+
+    def _joint_name(self) -> str:
+        joint = self.profile.interfaces["pan"].joint
+        return joint.name if joint is not None else "pan_joint"
 
     def wait_ready(self, timeout: float) -> None:
         """Until every subscribed topic has had a message, or ``ConnectionError`` naming those that had none."""
@@ -208,6 +217,18 @@ class Ros2Backend:
 
     def write_results(self, folder: Path) -> None:
         """Nothing to leave: what the robot did is in its own logs."""
+
+
+def joint_limits(spec: Device) -> tuple[float, float]:
+    """A pan's limits in rad from its profile joint (the AX-12A's units: 300 deg over 1024)."""
+    from robots.drivers.dynamixel_servo import raw_to_angle
+
+    joint = spec.joint
+    if joint is None:
+        raise ValueError("a pan needs its joint in the profile")
+    flipped = joint.min > joint.max
+    ends = sorted(raw_to_angle(limit, joint.init, flipped) for limit in (joint.min, joint.max))
+    return ends[0], ends[1]
 
 
 def _read_only_frame(message: Any) -> Any:

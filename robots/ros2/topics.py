@@ -12,6 +12,15 @@ A channel is one topic of an interface; the speaker has two: ``speaker`` (text t
 ``{"layout": "Layout_1", "content": {"title": "..."}}``: a layout and its text fields have no
 standard message.
 
+The pan (the face tracker's servo) has two channels: ``pan`` (in) takes the joint's goal angle
+as ``std_msgs/Float64`` on ``pan_controller/command``, the topic and type of the book's chapter 2
+(dynamixel_controllers' JointPositionController; a ROS 2 port of its controller publishes there
+unchanged), and ``pan_state`` (out) says where the joint is as ``sensor_msgs/JointState`` on
+``joint_states``, one joint named as the profile's ``joint.name`` (``pan_joint``), position only,
+as ros2_control's joint_state_broadcaster publishes it (decision: the chapter's own state message,
+dynamixel_msgs/JointState, is not a standard type; the joint limits are the profile's, so a
+mission reads them from there). The state at 20 Hz, the chapter's manager's update_rate.
+
 Sensor streams use ROS's sensor-data QoS (best effort, depth 5), as ROS drivers publish them;
 commands, odometry, battery, audio and the speaking state are reliable (audio must not have
 holes, a command must arrive). ``/clock`` is absolute and best effort with depth 1 (rclcpp's
@@ -74,6 +83,8 @@ CHANNELS: dict[str, Channel] = {
         Channel("speaker", "speaker", "say", "std_msgs/msg/String", Direction.COMMAND),
         Channel("speaking", "speaker", "speaking", "std_msgs/msg/Bool", Direction.READING, 5.0),
         Channel("display", "display", "display", "std_msgs/msg/String", Direction.COMMAND),
+        Channel("pan", "pan", "pan_controller/command", "std_msgs/msg/Float64", Direction.COMMAND),
+        Channel("pan_state", "pan", "joint_states", "sensor_msgs/msg/JointState", Direction.READING, 20.0),
     )
 }
 

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from robots.backend import Fault
+from robots.backend import Fault, ScriptedWalk
 from robots.clock import Clock
 from robots.gridmap import GridMap
 from robots.interfaces import Pose2D
@@ -24,6 +24,7 @@ from robots.sim.devices import (
     SimLaser,
     SimMicrophone,
     SimOdometry,
+    SimPan,
     SimPeopleTracker,
     SimSonar,
     SimSpeaker,
@@ -54,13 +55,17 @@ def populated_world(
     seed: int,
     people: int = 0,
     gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
+    walks: list[ScriptedWalk] | None = None,
 ) -> tuple[World, Crowd]:
     """The robot's world and the people in it, wired together: people are laser returns and
-    obstacles, and keep clear of the robot themselves. ``gatherings``: (time, centre, size, stay)."""
+    obstacles, and keep clear of the robot themselves. ``gatherings``: (time, centre, size, stay);
+    ``walks``: people who walk a given path (after the others: their ids follow)."""
     legged = profile.base.kind == "legged"
     world = World(grid, profile, start, seed, slip_std=LEGGED_SLIP if legged else WHEEL_SLIP)
     crowd = Crowd.populate(grid, world.rng, people, avoid=(start.x, start.y))
     crowd.scripted = sorted(gatherings or [])
+    for walk in walks or []:
+        crowd.add_walk(walk)
     world.movers = crowd.positions
     world.mover_radius = PERSON_RADIUS
     crowd.robot = lambda: (world.body.pose.x, world.body.pose.y)
@@ -87,13 +92,16 @@ class SimBackend:
         people: int = 0,
         gatherings: list[tuple[float, tuple[float, float], int, float]] | None = None,
         voices: dict[str, Any] | None = None,
+        walks: list[ScriptedWalk] | None = None,
     ) -> None:
         self.clock = clock
-        self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings)
+        self.world, self.crowd = populated_world(profile, grid, start, seed, people, gatherings, walks)
         self.devices: dict[str, Any] = {}
         self.not_simulated: list[str] = []
         gaits = profile.gaits
         walker = SimGaitDrive(self.world, gaits) if gaits is not None else None  # a legged base walks in gaits
+        pan_spec = profile.interfaces.get("pan")
+        pan = SimPan(self.world, pan_spec.joint) if pan_spec is not None and pan_spec.joint is not None else None
         makers = {
             "drive": lambda d: walker or SimDrive(self.world),
             "odometry": lambda d: SimGaitOdometry(walker, clock) if walker else SimOdometry(self.world, clock),
@@ -104,7 +112,10 @@ class SimBackend:
             "speaker": lambda d: SimSpeaker(clock),
             "display": lambda d: SimDisplay(clock),
             "people": lambda d: SimPeopleTracker(self.world, self.crowd, d, clock),
-            "camera": lambda d: SimCamera(self.world, self.crowd, d, clock),
+            "camera": lambda d: SimCamera(
+                self.world, self.crowd, d, clock, pan=_angle_of(pan) if d.mounted_on == "pan" else None
+            ),
+            "pan": lambda d: pan,
             "microphone": lambda d: SimMicrophone(self.world, clock),
         }
         for name, device in profile.interfaces.items():
@@ -157,6 +168,9 @@ class SimBackend:
 
     def close(self) -> None:
         self.world.stop()  # zero velocity on every exit path
+        pan = self.devices.get("pan")
+        if isinstance(pan, SimPan):
+            pan.hold()  # the servo stays where it is, as the driver's close holds it
 
     def write_results(self, folder: Path) -> None:
         self.trajectory.write(folder / "trajectory.csv")
@@ -178,6 +192,21 @@ class SimBackend:
             "bump_ticks": body.contact_steps,
             "people": len(self.crowd.people),
             "utterances": len(self.voices.spoken) if self.voices is not None else 0,
-            "battery_percent": round(self.world.battery_percent, 3),
+            "battery_percent": round(self.world.battery_percent, 3) if self.profile.battery is not None else None,
             "not_simulated": self.not_simulated,
+            **pan_summary(self.devices.get("pan")),
         }
+
+
+def _angle_of(pan: SimPan | None) -> Callable[[], float]:
+    """What a camera on the pan reads its angle from (the shaft, exactly)."""
+    if pan is None:
+        raise ValueError("a camera mounted on the pan needs a pan")
+    return lambda: pan.angle
+
+
+def pan_summary(pan: Any) -> dict[str, Any]:
+    """The pan's block of summary.json: where it ended and how often it was told to move."""
+    if not isinstance(pan, SimPan):
+        return {}
+    return {"pan": {"final_angle": round(pan.angle, 5), "commands": pan.commands, "clamped": pan.clamped}}

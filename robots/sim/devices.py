@@ -3,12 +3,14 @@
 Odometry is computed from the encoder ticks exactly as a driver computes it from a real board
 (diff_tf's model), so it drifts with the simulated wheel slip; the world's true pose stays
 hidden from skills. A legged base (Bittle) walks in gaits and estimates its odometry from them,
-as its NyBoard driver does (``SimGaitDrive``, ``SimGaitOdometry``).
+as its NyBoard driver does (``SimGaitDrive``, ``SimGaitOdometry``). A pan servo (``SimPan``) turns
+on the world's time as the AX-12A does, and a camera mounted on it looks where it points.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,7 +28,7 @@ from robots.interfaces import (
     TrackedPerson,
     Twist2D,
 )
-from robots.profile import Device
+from robots.profile import Device, ServoJoint
 from robots.sim.people import Crowd
 from robots.sim.world import World
 
@@ -249,12 +251,16 @@ class SimCamera:
     A frame is rendered at most once a clock tick, when it is first asked for, and every reader
     in that tick gets the same array: so it is read-only (copy it to draw on it)."""
 
-    def __init__(self, world: World, crowd: Crowd, device: Device, clock: Clock) -> None:
+    def __init__(
+        self, world: World, crowd: Crowd, device: Device, clock: Clock, pan: Callable[[], float] | None = None
+    ) -> None:
+        """``pan``: the present angle (rad) of the joint the camera rides on, read at each render."""
         from robots.sim.camera import CameraView  # OpenCV loads only for robots with a camera
 
         self.world = world
         self.crowd = crowd
         self.clock = clock
+        self.pan = pan
         self.view: CameraView = CameraView(device)
         self.info = CameraInfo(self.view.width, self.view.height, self.view.fov)
         self._frame: np.ndarray | None = None
@@ -263,7 +269,7 @@ class SimCamera:
 
     def frame(self) -> np.ndarray:
         if self._frame is None or self._at != self.clock.ticks:
-            frame = self.view.render(self.world, self.crowd.people)
+            frame = self.view.render(self.world, self.crowd.people, self.pan() if self.pan is not None else 0.0)
             frame.setflags(write=False)
             self._frame, self._at = frame, self.clock.ticks
             self.renders += 1
@@ -385,3 +391,93 @@ class SimGaitOdometry:
         self.drive.advance()
         estimate = self.drive.estimate
         return OdometryReading(self.clock.now(), estimate.pose, estimate.twist, estimate.covariance)
+
+
+class SimPan:
+    """A pan servo as the AX-12A of the face tracker turns (``robots/emulators/ax12.py`` plays the
+    same servo byte for byte): the goal is the driver's (the angle clamped to the limits, rounded to
+    position units of 300°/1024), the shaft turns towards it at the joint speed the servo is given
+    (its Moving Speed register holds units of 0.111 rpm, so 1.17 rad/s runs at 101 units, 1.174
+    rad/s), and it reads back in whole units, as Present Position does.
+
+    The shaft moves on the world's time, brought up to date whenever it is commanded or read (as
+    ``SimGaitDrive.advance`` does): the same between two ticks however often it is asked, and the
+    same run after run. ``angle`` is the shaft's exact angle, which a camera on it looks along.
+    """
+
+    def __init__(self, world: World, joint: ServoJoint) -> None:
+        from robots.drivers import dynamixel_servo as ax  # the servo's units and conversions, one place
+
+        self.world = world
+        self.joint = joint
+        self._ax = ax
+        self._flipped = joint.min > joint.max  # dynamixel_controllers' "flipped" joint
+        self.low, self.high = sorted((joint.min, joint.max))
+        self.units_per_s = ax.speed_to_raw(joint.joint_speed) * ax.RAD_S_PER_SPEED_UNIT / ax.RAD_PER_UNIT
+        self._shaft = float(joint.init)  # position units
+        self._goal = joint.init
+        self._at = world.time
+        self.commands = 0
+        self.clamped = 0
+
+    @property
+    def min_angle(self) -> float:
+        return min(self._angle(self.low), self._angle(self.high))
+
+    @property
+    def max_angle(self) -> float:
+        return max(self._angle(self.low), self._angle(self.high))
+
+    @property
+    def speed(self) -> float:
+        """rad/s the shaft turns at (the joint speed as the servo's register holds it)."""
+        return self.units_per_s * self._ax.RAD_PER_UNIT
+
+    def _angle(self, raw: float) -> float:
+        return self._ax.raw_to_angle(raw, self.joint.init, self._flipped)
+
+    def move_to(self, angle: float) -> bool:
+        """Turn towards ``angle`` (rad, counter-clockwise positive), clamped to the limits; always sent."""
+        if not math.isfinite(angle):
+            raise ValueError(f"angle {angle}: a finite number of radians")
+        self.advance()
+        clamped = min(max(angle, self.min_angle), self.max_angle)
+        self.clamped += clamped != angle
+        raw = self._ax.angle_to_raw(clamped, self.joint.init, self._flipped)
+        self._goal = min(max(raw, self.low), self.high)
+        self.commands += 1
+        return True
+
+    def position(self) -> float:
+        """The present angle as the servo reports it: in whole position units."""
+        self.advance()
+        return self._angle(round(self._shaft))
+
+    @property
+    def angle(self) -> float:
+        """The shaft's exact angle now (rad), for what rides on it."""
+        self.advance()
+        return self._angle(self._shaft)
+
+    @property
+    def goal(self) -> float:
+        return self._angle(self._goal)
+
+    @property
+    def moving(self) -> bool:
+        self.advance()
+        return self._shaft != self._goal
+
+    def hold(self) -> None:
+        """Stop where the shaft is now (the goal becomes the present position), as the driver's close does."""
+        self.advance()
+        self._goal = min(max(round(self._shaft), self.low), self.high)
+
+    def advance(self) -> None:
+        """Turn the shaft over the world time since the last call, towards the goal at the joint speed."""
+        dt, self._at = self.world.time - self._at, self.world.time
+        if dt <= 0:
+            return
+        gap = self._goal - self._shaft
+        step = self.units_per_s * dt
+        self._shaft = float(self._goal) if abs(gap) <= step else self._shaft + math.copysign(step, gap)

@@ -11,7 +11,7 @@ class SimKind(BackendKind):
     simulated = True
 
     class Options(BackendOptions):
-        """The simulator takes its settings from the mission (world, people, gatherings, voices)."""
+        """The simulator takes its settings from the mission (world, people, gatherings, walks, voices)."""
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
         from robots.sim.backend import SimBackend
@@ -27,4 +27,5 @@ class SimKind(BackendKind):
             people=request.people,
             gatherings=list(request.gatherings),
             voices=dict(request.voices) if request.voices is not None else None,
+            walks=list(request.walks),
         )

@@ -6,16 +6,27 @@ meets at a gathering point, each member standing 0.3 to 0.6 m from the point (so
 within 1.5 m of another, the paper's crowd definition), stays a while, then disperses. People
 keep clear of the robot: a step that would touch it waits or goes around. All
 randomness comes from the world's generator: the same seed gives the same people.
+
+A scripted walker (a mission's ``walks:``, ``add_walk``) is a person who walks a given path and
+nothing else: standing at its first point until the walk's time, then from point to point at the
+walk's speed, ``repeat`` times round (from the last point back to the first between rounds),
+``pause`` s at each point, and standing at the last point once done. Walkers draw nothing from the
+generator, never join a group and are never sent elsewhere when blocked (they wait, or step
+round the robot), so adding one leaves everyone else's walk as it was, and the same walk is
+walked the same way run after run. Their time is exact: a walk that sets off at 2.0 s is moving
+from 2.0 s, whatever the tick.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from robots.backend import ScriptedWalk
 from robots.gridmap import FREE, GridMap
 from robots.sim.world import inflate
 
@@ -31,6 +42,48 @@ class Person:
     goal: tuple[float, float]
     pause_until: float = 0.0
     group: int | None = None
+    route: Route | None = None  # a scripted walker's path: it walks only that
+
+
+@dataclass
+class Route:
+    """Where a scripted walker goes: its points in order (rounds included), the next one, and how
+    long it stands at each."""
+
+    points: list[tuple[float, float]]
+    pause: float = 0.0
+    next: int = 1
+
+    @property
+    def done(self) -> bool:
+        return self.next >= len(self.points)
+
+
+def standable(grid: GridMap) -> np.ndarray:
+    """Where a person's centre may be: free floor at least ``PERSON_RADIUS`` from anything else."""
+    return ~inflate(grid.data != FREE, math.ceil(PERSON_RADIUS / grid.resolution))
+
+
+def first_blocked(
+    grid: GridMap, path: list[tuple[float, float]], room: np.ndarray | None = None
+) -> tuple[int, float, float] | None:
+    """Where a walk along ``path`` first leaves room for a person: (k, x, y), ``k`` the index of the
+    point walked towards there (0: the first point itself has no room); None when all is clear."""
+    room = standable(grid) if room is None else room
+
+    def clear(x: float, y: float) -> bool:
+        row, col = grid.cell(x, y)
+        return grid.inside(row, col) and bool(room[row, col])
+
+    if not clear(*path[0]):
+        return 0, path[0][0], path[0][1]
+    for k, ((ax, ay), (bx, by)) in enumerate(itertools.pairwise(path), start=1):
+        steps = max(1, math.ceil(math.hypot(bx - ax, by - ay) / (grid.resolution / 2)))
+        for step in range(1, steps + 1):
+            x, y = ax + (bx - ax) * step / steps, ay + (by - ay) * step / steps
+            if not clear(x, y):
+                return k, x, y
+    return None
 
 
 @dataclass
@@ -58,7 +111,7 @@ class Crowd:
     _next_id: int = 1
 
     def __post_init__(self) -> None:
-        self.standable = ~inflate(self.grid.data != FREE, math.ceil(PERSON_RADIUS / self.grid.resolution))
+        self.standable = standable(self.grid)
         self._free_cells = np.argwhere(self.standable)
 
     @classmethod
@@ -131,7 +184,10 @@ class Crowd:
                 person.group = None
                 person.goal = self.random_spot()
         for person in self.people:
-            self._walk(person, dt)
+            if person.route is not None:
+                self._follow(person, dt)
+            else:
+                self._walk(person, dt)
 
     def _person(self, pid: int) -> Person:
         return next(p for p in self.people if p.id == pid)
@@ -140,8 +196,44 @@ class Crowd:
     def _at(person: Person, spot: tuple[float, float]) -> bool:
         return math.hypot(person.x - spot[0], person.y - spot[1]) < 0.05
 
+    def add_walk(self, walk: ScriptedWalk) -> Person:
+        """A scripted walker for ``walk`` (see the module), standing at its first point until it sets off."""
+        if len(walk.path) < 2 or walk.repeat < 1 or not walk.speed > 0:
+            raise ValueError("a walk needs two points or more, a speed above 0 and at least one round")
+        points = [(float(x), float(y)) for x, y in walk.path] * walk.repeat
+        x, y = points[0]
+        person = Person(self._new_id(), x, y, walk.speed, points[1], pause_until=walk.at)
+        person.route = Route(points, walk.pause)
+        self.people.append(person)
+        return person
+
+    def _follow(self, person: Person, dt: float) -> None:
+        """A walker's step: along its route for the part of ``dt`` it is not standing still."""
+        route = person.route
+        assert route is not None
+        left = min(dt, self.time - person.pause_until)  # it may set off (or walk on) within this step
+        while left > 1e-12 and not route.done:
+            gx, gy = route.points[route.next]
+            dx, dy = gx - person.x, gy - person.y
+            distance = math.hypot(dx, dy)
+            if distance < 1e-9:  # there: on to the next point, after the pause
+                route.next += 1
+                if not route.done:
+                    person.goal = route.points[route.next]
+                if route.pause:
+                    person.pause_until = self.time - left + route.pause
+                    left = min(left, self.time - person.pause_until)
+                continue
+            stride = min(person.speed * left, distance)
+            nx, ny = person.x + dx / distance * stride, person.y + dy / distance * stride
+            if not self._can_step(person, nx, ny):
+                person.x, person.y = self._sidestep(person, dx / distance, dy / distance, stride)  # or wait
+                return
+            person.x, person.y = (gx, gy) if stride == distance else (nx, ny)
+            left -= stride / person.speed
+
     def _form_group(self) -> None:
-        free = [p for p in self.people if p.group is None]
+        free = [p for p in self.people if p.group is None and p.route is None]
         if len(free) < 2:
             return
         size = int(self.rng.integers(2, min(6, len(free)) + 1))
@@ -157,7 +249,8 @@ class Crowd:
         """The ``size`` nearest free people walk to ``centre`` and stay ``stay`` s once all are
         there (a scripted gathering); False when there are too few free people or no room."""
         free = sorted(
-            (p for p in self.people if p.group is None), key=lambda p: math.hypot(p.x - centre[0], p.y - centre[1])
+            (p for p in self.people if p.group is None and p.route is None),
+            key=lambda p: math.hypot(p.x - centre[0], p.y - centre[1]),
         )
         spots = self._spots_around(centre, size) if len(free) >= size else None
         if spots is None:

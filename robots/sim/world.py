@@ -19,7 +19,11 @@ What it models, and why:
   or a person). ``contact_steps`` counts the steps spent pushing.
 - **Watchdog**: with no velocity command for ``watchdog_s`` the robot stops, as a real base's
   firmware does.
-- **Battery** drains with the current drawn (idle plus a share of the drive current).
+- **Battery** drains with the current drawn (idle plus a share of the drive current); a robot on
+  mains power (no ``battery:`` in its profile) never runs down.
+- **A fixed base** (the face tracker on its desk) stands where it was put: no wheels turn, the
+  body stays, and only time (and what rides on it, such as a pan, which its own device moves)
+  goes on.
 - **IMU** integrates the true turn rate with a gyro bias and noise.
 - **Laser** ranges by ray casting on the grid, all beams at once with numpy; people (round
   ``movers`` the backend attaches) return beams too.
@@ -144,7 +148,7 @@ class World:
             raise ValueError(f"the robot cannot start at ({start.x:g}, {start.y:g}): it would overlap an obstacle")
         self._command = (0.0, 0.0)
         self._command_time = -math.inf
-        self.battery_charge_ah = profile.battery.capacity_ah
+        self.battery_charge_ah = profile.battery.capacity_ah if profile.battery is not None else 0.0
         self.imu_yaw = start.theta
         # moving round obstacles (people): their centres as an (n, 2) array, and their radius
         self.movers: Callable[[], np.ndarray] | None = None
@@ -184,6 +188,12 @@ class World:
 
     def step(self, dt: float) -> None:
         body, base = self.body, self.base
+        if not base.moves:  # a fixed base: nothing to drive, the body stays where it stands
+            body.bumped = False
+            body.yaw_rate = body.linear = 0.0
+            self._drain(dt)
+            self.time += dt
+            return
         target_left, target_right = self.wheel_targets()
         for wheel, target in ((body.left, target_left), (body.right, target_right)):
             slowing = abs(target) < abs(wheel.speed) and target * wheel.speed >= 0
@@ -219,11 +229,17 @@ class World:
         body.pose = pose
         gyro = body.yaw_rate + self.gyro_bias + self.rng.normal(0.0, 0.005)
         self.imu_yaw = _angle(self.imu_yaw + gyro * dt)
+        self._drain(dt)
+        self.time += dt
+
+    def _drain(self, dt: float) -> None:
+        """The battery gives the idle current and a share of the drive current; mains never runs down."""
         battery = self.profile.battery
-        load = abs(body.linear) / base.max_linear if base.max_linear else 0.0
+        if battery is None:
+            return
+        load = abs(self.body.linear) / self.base.max_linear if self.base.max_linear else 0.0
         current = battery.idle_current + battery.drive_current * min(load, 1.0)
         self.battery_charge_ah = max(0.0, self.battery_charge_ah - current * dt / 3600)
-        self.time += dt
 
     def _touch(self, pose: Pose2D, what: str, dt: float) -> None:
         """A step cut short: a new bump when the robot was not touching this kind of thing yet."""
@@ -400,11 +416,15 @@ class World:
 
     @property
     def battery_percent(self) -> float:
-        return 100.0 * self.battery_charge_ah / self.profile.battery.capacity_ah
+        """The charge left; always 100 on mains power (no battery to run down)."""
+        battery = self.profile.battery
+        return 100.0 * self.battery_charge_ah / battery.capacity_ah if battery is not None else 100.0
 
     @property
     def battery_voltage(self) -> float:
         battery = self.profile.battery
+        if battery is None:
+            raise ValueError(f"robot {self.profile.name!r} has no battery (it runs on mains power)")
         return battery.empty_voltage + (battery.full_voltage - battery.empty_voltage) * self.battery_percent / 100
 
 

@@ -21,7 +21,8 @@ faces it would turn back and forth between them).
 
 Beyond the chapter: a proportional step (``gain`` rad per pixel of the face's offset from the
 centre, at most ``max_step`` a frame), which re-centres a face far off faster than 0.01 rad a
-frame can, as an option beside the fixed step (not yet measured against it on a simulated head).
+frame can, as an option beside the fixed step (measured against it on the simulated head by
+``botstage bench facetracker``; ``skills/track_face.py`` runs both).
 """
 
 from __future__ import annotations
@@ -94,8 +95,9 @@ class PanController:
         offset = face_x - middle  # positive: the face is right of the centre
         if abs(offset) <= self.centre_offset:
             return self.position  # in the dead band, its edges included
-        beyond = abs(offset) - self.centre_offset
-        move = min(self.max_step, self.gain * beyond) if self.gain > 0 else self.step
+        # proportional to the offset from the centre, not from the band's edge: aimed at the edge,
+        # the steps shrink towards nothing and the face creeps up to the band and sits on its edge
+        move = min(self.max_step, self.gain * abs(offset)) if self.gain > 0 else self.step
         self.position += -move if offset > 0 else move  # a face on the left turns the camera left
         self.position = max(self.low, min(self.high, self.position))
         return self.position
