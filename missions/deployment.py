@@ -11,7 +11,9 @@ interface served twice, an interface the robot does not have, the simulator spli
 Rules (decided here, documented in the README): exactly one process runs the mission; it runs
 every skill no other process serves, unless its own `skills:` lists them, which is then the
 whole list. Interfaces come from the processes that open a backend (`backend:`); when none
-lists `interfaces:`, the mission's process opens the robot as a one-process run does. Processes
+lists `interfaces:`, the mission's process opens the robot as a one-process run does. A process
+that opens the robot may also serve it as ROS 2 topics (`topics: true`) for teleop and ROS 2
+tools: they drive it whenever the mission does not (missions/distributed/operator.py). Processes
 reach each other through the router process (default: the mission's), or the processes they
 name in `connect:`. Process names are their ROS node names.
 """
@@ -50,6 +52,11 @@ class Process(_Strict):
     interfaces: list[str] | None = Field(default=None, description="the robot's interfaces it serves")
     skills: list[str] | None = Field(default=None, description="the skills it serves")
     gallery: bool = Field(default=False, description="runs the photo gallery")
+    topics: bool = Field(
+        default=False,
+        description="also serves the robot's interfaces as ROS 2 topics (cmd_vel in; odom, ... out) for teleop "
+        "and ROS 2 tools, while no mission drives it (needs `backend:`)",
+    )
     listen: list[str] = Field(default_factory=list, description="Zenoh endpoints it listens on")
     connect: list[str] = Field(default_factory=list, description="processes it connects to (default: the router)")
 
@@ -175,6 +182,13 @@ def _check_processes(deployment: Deployment, out: _Out) -> None:
     galleries = [name for name, p in deployment.processes.items() if p.gallery]
     for extra in galleries[1:]:
         out.at(("processes", extra, "gallery"), f"one process runs the gallery, already {galleries[0]!r}")
+    for name, process in deployment.processes.items():
+        if process.topics and process.backend is None:
+            out.at(
+                ("processes", name, "topics"),
+                f"process {name!r} serves topics but opens no backend",
+                "add `backend: sim` or another",
+            )
     simulators = [name for name, p in deployment.processes.items() if p.backend in SIMULATED]
     for extra in simulators[1:]:
         out.at(

@@ -53,6 +53,7 @@ class RosserialGlove:
         self.port = port
         self._stack = contextlib.ExitStack()
         self._driver: Any = None
+        self._last: tuple[float, HandSample] | None = None  # the driver's last sample, as given out
 
     def _open(self) -> Any:
         from robots.drivers.rosserial import RosserialDriver
@@ -69,8 +70,12 @@ class RosserialGlove:
         sample = driver.orientation()
         if sample is None:
             return None
+        if self._last is not None and self._last[0] == sample.received:
+            return self._last[1]  # the same sample, at the same mission time: a reader counts it once
         age = time.monotonic() - sample.received  # the driver stamps arrivals on the monotonic clock
-        return HandSample(sample.yaw, sample.pitch, sample.roll, self.clock.now() - age)
+        given = HandSample(sample.yaw, sample.pitch, sample.roll, self.clock.now() - age)
+        self._last = (sample.received, given)
+        return given
 
     def close(self) -> None:
         self._stack.close()

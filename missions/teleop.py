@@ -6,6 +6,11 @@ Ctrl-C, or the end of the input) ends the session. The command is held between k
 every tick, so the base's watchdog sees a live operator; it stops the robot when the session ends,
 however it ends. Keys come from a ``KeySource``: the terminal in cbreak mode, or any stream (one
 key per tick: scripts and tests).
+
+The robot is a backend opened here, or one another process serves as ROS 2 topics
+(``open_served``: ``botstage serve robot``, a deployment's robot process with ``topics: true``,
+any ROS 2 robot): then teleop is a ``cmd_vel`` publisher like any ROS 2 teleop, and the robot's
+own velocity watchdog stops it if teleop goes away without saying stop.
 """
 
 from __future__ import annotations
@@ -14,19 +19,27 @@ import os
 import select
 import sys
 import termios
+import time
 import tty
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import IO, Protocol
+from typing import IO, TYPE_CHECKING, Any, Protocol
 
 from robots.clock import Clock
-from robots.interfaces import Drive, Odometry, OdometryReading
+from robots.interfaces import Drive, Odometry, OdometryReading, Pose2D
+
+if TYPE_CHECKING:
+    from robots.profile import Profile
+    from robots.ros2.topic_robot import Ros2Backend
 
 HELP = "w/x or up/down: faster forward/back   a/d or left/right: turn left/right   s or space: stop   q: quit"
 
 ARROWS = {"\x1b[A": "up", "\x1b[B": "down", "\x1b[C": "right", "\x1b[D": "left"}
 QUIT = {"q", "Q", "\x03", "\x04"}  # q, Ctrl-C, Ctrl-D
+SECURE_LISTEN = "tls/127.0.0.1:0"  # a secured session speaks only TLS, on loopback here too
+TELEOP_INTERFACES = ("drive", "odometry")  # what teleop uses of a served robot: cmd_vel out, odom in
+KNOCK_S = 0.1  # zero velocity this often until the served robot's odometry comes
 
 
 @dataclass
@@ -183,3 +196,71 @@ def run_teleop(
 
     drive_loop(drive, commands, clock, step=step, odometry=odometry, show=show, until=until)
     return state
+
+
+def open_served(
+    profile: Profile,
+    start: Pose2D,
+    clock: Clock,
+    connect: Sequence[str],
+    *,
+    domain_id: int = 0,
+    namespace: str = "/",
+    node_name: str = "teleop",
+    ready_timeout: float = 10.0,
+    security: Mapping[str, Any] | None = None,
+) -> Ros2Backend:
+    """The robot another process serves as ROS 2 topics, for teleop: ``cmd_vel`` published, ``odom`` read.
+
+    Teleop joins the graph as node ``node_name``, connected to ``connect`` (the robot process's or
+    the router's endpoint), through the ``ros2`` backend's own proxies, subscribed to nothing but
+    the odometry (a camera's frames are not its business). Until the first odometry comes it
+    publishes zero velocity every ``KNOCK_S``: a deployment's robot process stands still, publishing
+    nothing, until someone drives it. ``ConnectionError`` if the odometry does not come within
+    ``ready_timeout`` seconds (of the transport's own monotonic time: the run's clock is not started).
+    ``security`` (robots/ros2/security.py's options: mutual TLS with a certificate of the
+    deployment's authority) reaches a secured deployment's robot: ``tls/`` endpoints only.
+    """
+    from robots.backend import OpenRequest
+    from robots.ros2.backend import Ros2Options
+    from robots.ros2.node import DEFAULT_LISTEN, Ros2Node
+    from robots.ros2.topic_robot import Ros2Backend
+
+    if "drive" not in profile.interfaces:
+        raise ValueError(f"robot {profile.name!r} has no drive")
+    used = {name: spec for name, spec in profile.interfaces.items() if name in TELEOP_INTERFACES}
+    options = Ros2Options(
+        connect=list(connect),
+        domain_id=domain_id,
+        namespace=namespace,
+        node_name=node_name,
+        ready_timeout=ready_timeout,
+    )
+    node = Ros2Node(
+        options.node_name,
+        options.namespace,
+        domain_id=options.domain_id,
+        listen=[SECURE_LISTEN if security else DEFAULT_LISTEN],
+        connect=options.connect,
+        options=security,
+    )
+    try:
+        backend = Ros2Backend(OpenRequest(profile.model_copy(update={"interfaces": used}), start, clock), options, node)
+        odometry = backend.latest.get("odometry")
+        deadline = time.monotonic() + ready_timeout
+        backend.devices["drive"].stop()
+        while odometry is not None and not odometry.ready.wait(KNOCK_S):
+            if time.monotonic() > deadline:
+                raise ConnectionError(
+                    f"no odometry within {ready_timeout:g} s on {odometry.topic} through "
+                    f"{', '.join(options.connect)} (domain {options.domain_id}): is the robot served there "
+                    "(botstage serve robot, a deployment's robot process with `topics: true`), is no mission "
+                    "driving it just now, and, for a secured deployment, are the endpoints tls/ with --certs?"
+                )
+            backend.devices["drive"].stop()
+        if odometry is not None:  # show the robot's own odometry: a start given here means nothing to it
+            backend.devices["odometry"].start = odometry.get()[0].pose
+    except BaseException:
+        node.close()
+        raise
+    return backend

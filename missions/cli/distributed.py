@@ -41,11 +41,22 @@ def process(
         help="speak only mutual TLS with this process's certificate (its folder, or the one `botstage certs` "
         "wrote) under the deployment's access policy; then it may listen beyond loopback (--listen tls/0.0.0.0:7447)",
     ),
+    backend: str | None = typer.Option(
+        None,
+        help="the robot process's backend on this machine instead of the file's, e.g. hardware on the robot's "
+        "own computer (the mission follows its clock: lockstep when simulated, real time otherwise)",
+    ),
+    port: str | None = typer.Option(None, help="the robot's serial port (hardware), e.g. /dev/serial0"),
+    backend_opt: list[str] = typer.Option(
+        [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"
+    ),
 ) -> None:
     """Run one process of a deployment (its robot, skills or mission) and serve it until Ctrl-C."""
-    from missions.distributed.process import DeploymentError, serve_process
+    from missions.cli.backends import backend_options
+    from missions.distributed.process import BackendGiven, DeploymentError, serve_process
 
     _check(deployment)
+    given = BackendGiven(backend, backend_options(backend_opt), port)
     try:
         code = serve_process(
             deployment,
@@ -57,6 +68,7 @@ def process(
             listen=listen or None,
             ready=lambda line: print(line, flush=True),
             certs=certs,
+            backend=given,
         )
     except DeploymentError as error:
         raise _fail(str(error), 2) from None

@@ -163,6 +163,41 @@ def _gesture_teleop(
         )
 
 
+def _open_served(
+    profile: Any, pose: Any, clock: Any, connect: list[str], domain_id: int, namespace: str, certs: Path | None
+) -> Any:
+    """The served robot, or exit with the reason (a bad endpoint, namespace or certificate: 2; nobody answering: 1)."""
+    from pydantic import ValidationError
+
+    from missions.teleop import open_served
+
+    security = None
+    if certs is not None:
+        from missions.distributed.security import SecurityError, secured
+        from robots.ros2.certs import Credentials
+        from robots.ros2.security import security_options
+
+        found = Credentials.in_folder(certs)
+        if found.missing():
+            listed = ", ".join(str(path) for path in found.missing())
+            raise _fail(f"error: no TLS credentials in {certs} (missing {listed}): give a process's folder", 2)
+        try:
+            secured(connect, connect)
+        except SecurityError as error:
+            raise _fail(f"error: {error}", 2) from None
+        security = security_options(found)
+    try:
+        backend = open_served(
+            profile, pose, clock, connect, domain_id=domain_id, namespace=namespace, security=security
+        )
+    except ValidationError as error:
+        raise _fail([f"error: {e['msg']}" for e in error.errors()], 2) from None
+    except ConnectionError as error:
+        raise _fail(f"error: {error}", 1) from None
+    console.print(f"driving {profile.name} served on {', '.join(connect)} (cmd_vel, odom)", highlight=False)
+    return backend
+
+
 def teleop(
     robot: str = typer.Argument("chefbot", help="the robot's profile"),
     backend: str = typer.Option(DEFAULT, help=backend_help()),
@@ -186,9 +221,28 @@ def teleop(
         None, metavar="FILE", help="the chapter's teleop_config.yaml (step_size, low/high speed and turn)"
     ),
     until: float | None = typer.Option(None, help="stop after this many seconds (Ctrl-C stops too)", min=0),
+    connect: list[str] = typer.Option(
+        [],
+        "--connect",
+        metavar="ENDPOINT",
+        help="drive a robot another process serves as ROS 2 topics (botstage serve robot, a deployment's robot "
+        "process, a ROS 2 robot): publish its cmd_vel through this Zenoh endpoint, e.g. tcp/127.0.0.1:7447 "
+        "(repeatable); its own watchdog stops it if teleop goes away",
+    ),
+    domain_id: int = typer.Option(
+        0, envvar="ROS_DOMAIN_ID", help="the served robot's ROS 2 domain (with --connect)", callback=NON_NEGATIVE
+    ),
+    namespace: str = typer.Option("/", help="the served robot's namespace (with --connect), e.g. /robot1"),
+    certs: Path | None = typer.Option(
+        None,
+        metavar="DIR",
+        help="with --connect to a secured deployment: mutual TLS with the certificate in DIR (the operator's "
+        "machine's process folder that `botstage certs` wrote, e.g. certs/pc); tls/ endpoints only",
+    ),
 ) -> None:
     """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits;
-    or with the book's gesture controller (--input gesture): tilt forward to speed up, turn the hand to turn."""
+    or with the book's gesture controller (--input gesture): tilt forward to speed up, turn the hand to turn.
+    The robot is opened here (--backend), or served by another process (--connect)."""
     from missions.cli.backends import open_backend
     from missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
     from robots.backend import OpenRequest
@@ -196,10 +250,21 @@ def teleop(
 
     if input_ not in ("keys", "gesture"):
         raise typer.BadParameter(f"{input_!r}: keys or gesture", param_hint="'--input'")
+    if certs is not None and not connect:
+        raise _fail("error: --certs is for --connect: a secured deployment's robot process", 2)
+    if connect and (backend != DEFAULT or port is not None or backend_opt):
+        raise _fail(
+            "error: --connect drives a robot another process serves; --backend, --port and "
+            "--backend-opt open one here: give one or the other",
+            2,
+        )
     profile, grid, pose = _robot_place(robot, world, start)
     clock = WallClock(rate_hz)
-    request = OpenRequest(profile, pose, clock, seed=seed, grid=grid)
-    robot_backend = open_backend(backend, request, backend_opt, port, robot)
+    if connect:
+        robot_backend = _open_served(profile, pose, clock, connect, domain_id, namespace, certs)
+    else:
+        request = OpenRequest(profile, pose, clock, seed=seed, grid=grid)
+        robot_backend = open_backend(backend, request, backend_opt, port, robot)
     devices = robot_backend.devices
     if "drive" not in devices:
         robot_backend.close()

@@ -35,13 +35,15 @@ import zenoh
 
 from missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
 from missions.distributed.clock import ClockPublisher
+from missions.distributed.operator import Operator
 from missions.distributed.security import SecurityError, secured, session_options
 from missions.gallery.service import fill_counters
 from missions.runner import run
+from missions.session.errors import RunError
 from missions.session.plugins import service_registry
 from missions.session.result import RunResult
 from missions.session.session import RunSession
-from robots.backend import BackendKind, BackendOptions, OpenRequest
+from robots.backend import BackendError, BackendKind, BackendOptions, OpenRequest
 from robots.backend_registry import BackendRegistry, open_kind
 from robots.clock import SimClock, WallClock
 from robots.remote import values
@@ -52,6 +54,7 @@ from robots.ros2 import types
 from robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
 from robots.ros2.node import Ros2Node
 from robots.ros2.service import ServiceUnavailable
+from robots.ros2.topics import routes
 from skills.outbox.store import DB_NAME
 from skills.registry import Registry
 from skills.remote.actions import SkillActions
@@ -89,6 +92,7 @@ class Role:
     backend: str | None
     runs_mission: bool
     others: list[str] = field(default_factory=list)  # processes the mission steps in lockstep
+    topics: bool = False  # also serves the robot as ROS 2 topics (missions/distributed/operator.py)
 
     @classmethod
     def of(cls, path: Path, name: str) -> Role:
@@ -119,6 +123,7 @@ class Role:
             process.backend,
             process.mission,
             others,
+            process.topics,
         )
 
 
@@ -179,6 +184,9 @@ class RemoteKind(BackendKind):
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Any:
         _, proxies = open_remote_devices(self.node, self.robot, READY_TIMEOUT_S)
+        # a robot process on a wall-clock backend (the robot's own board, an emulator): the run
+        # then goes in real time, as it would with that backend in one process
+        self.simulated = bool(getattr(proxies[CONTROL], "simulated", True))  # type: ignore[misc]
         return RemoteRobot(proxies, request.profile, request.grid, request.clock)
 
 
@@ -299,13 +307,42 @@ class MissionLog:
             self.say(line)
 
 
-def _open_robot(role: Role, seed: int | None, clock: SimClock | WallClock) -> tuple[Any, RunSession]:
-    session = RunSession(role.mission_path, seed=seed, backend=role.backend or "sim")
-    session.check()
+def _open_robot(
+    role: Role, seed: int | None, clock: SimClock | WallClock, given: BackendGiven | None = None
+) -> tuple[Any, RunSession, OpenRequest]:
+    given = given or BackendGiven()
+    session = RunSession(
+        role.mission_path,
+        seed=seed,
+        backend=given.name or role.backend or "sim",
+        backend_options=given.options,
+        port=given.port,
+    )
+    try:
+        session.check()
+    except RunError as error:
+        raise DeploymentError("\n".join(error.lines())) from None
     request = session.robot_request(clock)
     if request is None:
         raise DeploymentError(f"the mission {role.mission_path.name} names no robot for {role.name!r} to serve")
-    return open_kind(session.kind, request, session.options), session
+    try:
+        return open_kind(session.kind, request, session.options), session, request
+    except BackendError as error:
+        raise DeploymentError("\n".join(error.lines())) from None
+
+
+@dataclass(frozen=True)
+class BackendGiven:
+    """The robot process's backend as its machine's command line gives it (``serve process --backend``):
+    the deployment file's otherwise. The Pi opens the real NyBoard where one machine simulates it."""
+
+    name: str | None = None
+    options: Mapping[str, Any] = field(default_factory=dict)
+    port: str | None = None
+
+    @property
+    def given(self) -> bool:
+        return self.name is not None or bool(self.options) or self.port is not None
 
 
 # The robot's estimates (localisation, navigation) stay with the mission: updating them reads the
@@ -340,13 +377,21 @@ def serve_process(
     ready: Callable[[str], None] = print,
     stop: threading.Event | None = None,
     certs: Path | None = None,
+    backend: BackendGiven | None = None,
 ) -> int:
     """Run process ``name`` of the deployment at ``path`` until it is stopped (or its mission ends).
 
     With ``certs`` (missions/distributed/security.py) it speaks only mutual TLS under the
-    deployment's access policy, and may listen beyond loopback.
+    deployment's access policy, and may listen beyond loopback. ``backend`` is this machine's
+    backend for the process that opens the robot, instead of the file's (the robot's own board
+    on the robot's computer).
     """
     role = Role.of(path, name)
+    backend = backend or BackendGiven()
+    if backend.given and not role.backend:
+        opener = next((n for n, p in role.checked.deployment.processes.items() if p.backend), None)  # type: ignore[union-attr]
+        where = f": {opener!r} does" if opener else ""
+        raise DeploymentError(f"process {name!r} opens no robot: a backend is for the process that opens it{where}")
     try:
         listen_on, connect_to, mode = endpoints(role, connect or [], listen, secure=certs is not None)
         options = session_options(role.checked, name, certs) if certs is not None else None
@@ -363,7 +408,7 @@ def serve_process(
         options=options,
         allow_remote=options is not None,
     )
-    with contextlib.ExitStack() as stack, node:
+    with node, contextlib.ExitStack() as stack:  # what the process serves ends before its node leaves the graph
         if role.runs_mission:  # Ctrl-C (SIGINT) and SIGTERM end the run as in one process: summary written
             try:
                 return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready)
@@ -374,14 +419,21 @@ def serve_process(
             with contextlib.suppress(ValueError):  # not the main thread (tests)
                 previous = signal.signal(signum, lambda *_: stop.set())
                 stack.callback(signal.signal, signum, previous)
-        _serve(role, node, stack, out=out, seed=seed, say=ready)
+        _serve(role, node, stack, out=out, seed=seed, say=ready, given=backend)
         ready(f"{name} ready")
         stop.wait()
     return 0
 
 
 def _serve(
-    role: Role, node: Ros2Node, stack: contextlib.ExitStack, *, out: Path, seed: int | None, say: Callable[[str], None]
+    role: Role,
+    node: Ros2Node,
+    stack: contextlib.ExitStack,
+    *,
+    out: Path,
+    seed: int | None,
+    say: Callable[[str], None],
+    given: BackendGiven | None = None,
 ) -> None:
     checked_mission = role.checked.mission
     assert checked_mission is not None and checked_mission.mission is not None
@@ -390,13 +442,15 @@ def _serve(
     clock = SimClock(mission.rate_hz)
     backend: Any = None
     if role.backend:
-        backend, _ = _open_robot(role, seed, clock)
+        backend, session, request = _open_robot(role, seed, clock, given)
         stack.callback(backend.close)
-        control = RunControl(backend, clock)
+        control = RunControl(backend, clock, simulated=session.kind.simulated)
         devices = DeviceHost({**backend.devices, CONTROL: control})
         serve_devices(node, devices)
         watch = MissionWatch(node, role.checked.mission_process, devices, control, say)
         stack.callback(watch.close)
+        if role.topics:
+            _serve_topics(backend, node, clock, request, watch, devices, session.kind.simulated, say, stack)
     elif role.skills_here and role.robot_process:
         _, proxies = open_remote_devices(node, role.robot_process, READY_TIMEOUT_S)
         session = RunSession(role.mission_path, seed=seed)
@@ -439,11 +493,45 @@ def _resume_outbox(uploads: Any, params: Mapping[str, Any], out: Path, say: Call
     say(f"resumed the outbox {folder}: {outbox.resumed} photo(s) still to upload")
 
 
-class RunControl(BackendControl):
-    """The robot's control, noting when the mission's run stopped the robot itself (its normal end)."""
+def _serve_topics(
+    backend: Any,
+    node: Ros2Node,
+    clock: SimClock,
+    request: OpenRequest,
+    watch: MissionWatch,
+    devices: DeviceHost,
+    simulated: bool,
+    say: Callable[[str], None],
+    stack: contextlib.ExitStack,
+) -> None:
+    """The robot's interfaces as ROS 2 topics too, driven in real time whenever no mission drives it."""
+    profile = request.profile
+    operator = Operator(
+        backend,
+        node,
+        clock,
+        routes(profile),
+        held=watch.holder,
+        lock=devices.lock,
+        say=say,
+        stamp_offset=0.0 if simulated else time.time() - clock.now(),  # ROS time for a real robot
+        watchdog_s=profile.control.watchdog_s,
+    )
+    stack.callback(operator.close)
+    for direction, topic, type_name in operator.topics():
+        say(f"  {direction:>3} {topic} [{type_name}]")
+    operator.start()
 
-    def __init__(self, backend: Any, clock: SimClock) -> None:
+
+class RunControl(BackendControl):
+    """The robot's control, noting when the mission's run stopped the robot itself (its normal end).
+
+    ``simulated`` tells the mission's process which clock to run on: its ticks move a simulated
+    world (lockstep), or the robot moves in real time (its own board, an emulator)."""
+
+    def __init__(self, backend: Any, clock: SimClock, *, simulated: bool = True) -> None:
         super().__init__(backend, clock)
+        self.simulated = simulated
         self._run_ended = False
 
     def stop(self) -> None:
@@ -492,6 +580,7 @@ class MissionWatch:
             now = bool(self._zids)
         if now and not before:
             self.control._run_ended = False  # a (new) mission: its run is on
+            self.say(f"mission {self.mission!r} is on the graph: it drives the robot")
         elif before and not now:
             threading.Thread(target=self._lost, args=(left,), name="mission-watch", daemon=True).start()
 
@@ -508,6 +597,11 @@ class MissionWatch:
             f"mission {self.mission!r} lost: drive stopped {(stopped - left) * 1000:.1f} ms after its node left "
             f"the graph (monotonic {stopped:.6f})"
         )
+
+    def holder(self) -> str | None:
+        """The mission's name while its node is on the graph (it drives the robot), else None."""
+        with self._lock:
+            return self.mission if self._zids else None
 
     def close(self) -> None:
         self._subscriber.undeclare()

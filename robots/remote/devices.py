@@ -93,6 +93,11 @@ class DeviceHost:
         self._handle_of: dict[int, str] = {}
         self._numbers = itertools.count(1)
 
+    @property
+    def lock(self) -> threading.Lock:
+        """Held while a call runs: whoever else touches the devices in this process takes it too."""
+        return self._lock
+
     def _target(self, interface: str) -> tuple[Any, list[Member]]:
         if interface.startswith(HANDLE):
             held = self._handles.get(interface)
