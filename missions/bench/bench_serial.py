@@ -246,17 +246,21 @@ def bench_latency(commands: int, streaming: bool) -> dict[str, Any]:
     }
 
 
-def bench_pty_floor(commands: int) -> dict[str, Any]:
-    """The round trip with nothing of ours in it: os.write on the slave, select and read on the master."""
+def bench_pty_floor(commands: int, data: bytes = b"s 10 20\r", to_host: bool = False) -> dict[str, Any]:
+    """The round trip with nothing of ours in it: os.write on the slave, select and read on the master
+    (``to_host``: the other way, a board's bytes written on the master and read on the slave,
+    until all of ``data`` is there)."""
     pty = Pty()
     rng = random.Random(5)
     latencies = []
+    source, sink = (pty.master, pty.slave) if to_host else (pty.slave, pty.master)
     for _ in range(commands):
         pty.drain()
         start = time.perf_counter()
-        os.write(pty.slave, b"s 10 20\r")
-        select.select([pty.master], [], [], 1.0)
-        os.read(pty.master, 64)
+        os.write(source, data)
+        got = 0
+        while got < len(data) and select.select([sink], [], [], 1.0)[0]:
+            got += len(os.read(sink, 4096))
         latencies.append((time.perf_counter() - start) * 1000)
         time.sleep(rng.uniform(0.001, 0.005))
     pty.close()

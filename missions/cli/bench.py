@@ -69,6 +69,16 @@ def bench_bittle(quick: bool = typer.Option(False, help="fewer commands and seed
         _stderr([f"target missed: {', '.join(missed)}"])
 
 
+@bench_app.command("gesture")
+def bench_gesture(quick: bool = typer.Option(False, help="fewer samples, a shorter stream: a smoke test")) -> None:
+    """The gesture controller: rosserial parser and IMU sample latency; the chapter's converter vs the fixed one."""
+    from missions.bench import bench_gesture as bench
+
+    missed = bench.missed(bench.main(quick=quick))
+    if missed and not quick:
+        _stderr([f"target missed: {', '.join(missed)}"])
+
+
 @bench_app.command("facetracker")
 def bench_facetracker(quick: bool = typer.Option(False, help="fewer frames, one walking speed: a smoke test")) -> None:
     """The face tracker: detection rate at 640x480; pixel error on a walk and re-centring, fixed vs proportional."""
