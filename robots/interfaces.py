@@ -18,6 +18,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 AUDIO_RATE_HZ = 16_000
+AUDIO_BUFFER_S = 30.0  # audio a microphone keeps between two reads; older samples are dropped
 
 
 def _finite(name: str, *values: float) -> None:
@@ -185,7 +186,7 @@ class Camera(Protocol):
 @runtime_checkable
 class Microphone(Protocol):
     def read(self) -> np.ndarray:
-        """Audio since the last read: 16 kHz mono int16 samples (possibly empty)."""
+        """Audio since the last read (at most the latest ``AUDIO_BUFFER_S``): 16 kHz mono int16, maybe empty."""
 
 
 @runtime_checkable

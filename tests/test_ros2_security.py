@@ -12,6 +12,7 @@ timeouts.
 from __future__ import annotations
 
 import datetime
+import itertools
 import os
 import queue
 import re
@@ -107,11 +108,19 @@ def closing() -> Iterator[list[Ros2Node]]:
         node.close()
 
 
+_EXCHANGES = itertools.count()
+
+
 def exchanges(listener: Ros2Node, talker: Ros2Node) -> bool:
-    """Whether a String published by ``talker`` reaches ``listener`` (failsafe-bounded)."""
+    """Whether a String published by ``talker`` reaches ``listener`` (failsafe-bounded).
+
+    Each exchange has a topic of its own: a subscriber left by an earlier one in the talker's own
+    process would match the publisher before the listener's subscriber is known there.
+    """
     got: queue.Queue[str] = queue.Queue()
-    listener.subscription("/hello", STRING, lambda message, _: got.put(message.data))
-    publisher = talker.publisher("/hello", STRING)
+    topic = f"/hello_{next(_EXCHANGES)}"
+    listener.subscription(topic, STRING, lambda message, _: got.put(message.data))
+    publisher = talker.publisher(topic, STRING)
     wait_matching(talker.session, publisher.key)
     publisher.publish(types.message_class(STRING)(data="hi"))
     return got.get(timeout=FAILSAFE_S) == "hi"

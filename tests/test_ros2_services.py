@@ -14,6 +14,7 @@ import queue
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -25,7 +26,7 @@ from robots.ros2.attachment import Attachment, decode, encode
 from robots.ros2.liveliness import EntityKind, parse_token
 from robots.ros2.node import Ros2Node
 from robots.ros2.qos import QoS
-from robots.ros2.service import PendingRequest, ServiceError, ServiceTimeout, ServiceUnavailable
+from robots.ros2.service import PendingRequest, ServiceError, ServiceTimeout, ServiceUnavailable, is_zenoh_timeout
 from tests.ros2_client.independent_interfaces import AddTwoInts, Measure, Measure_Request, Thing
 from tests.test_ros2_interop import FAILSAFE_S, listening_node, until
 
@@ -241,6 +242,20 @@ def test_a_slow_server_times_the_call_out_and_the_late_answer_is_dropped(nodes: 
     assert entered.wait(FAILSAFE_S)
     release.set()
     assert client.call(add_request(2, 2), timeout=FAILSAFE_S).sum == 4  # the late answer was not taken for this one
+
+
+def test_zenohs_own_timeout_is_told_from_a_servers_error_whoever_sends_it() -> None:
+    """Under load the server's session can send Zenoh's "Timeout" before the caller's, naming itself."""
+
+    def reply(payload: bytes | None, replier: object) -> Any:
+        err = None if payload is None else SimpleNamespace(payload=zenoh.ZBytes(payload))
+        return SimpleNamespace(err=err, replier_id=replier)
+
+    server = SimpleNamespace(zid="205d8bbfe15fc42c0fef2c67ba2edc70")
+    assert is_zenoh_timeout(reply(b"Timeout", None))  # the caller's own session
+    assert is_zenoh_timeout(reply(b"Timeout", server))  # the server's session, first under load
+    assert not is_zenoh_timeout(reply(b"service /slow: the handler raised TimeoutError: db", server))
+    assert not is_zenoh_timeout(reply(None, server))  # an answer
 
 
 def test_a_raising_handler_answers_an_error_and_the_server_goes_on(nodes: tuple[Ros2Node, Ros2Node]) -> None:

@@ -205,6 +205,26 @@ def test_reads_join_with_no_gap_and_no_overlap(rate_hz: float) -> None:
     assert np.array_equal(np.concatenate(chunks), other.devices["microphone"].read())
 
 
+def test_an_unread_microphone_keeps_only_its_buffer_and_the_same_audio_after_it() -> None:
+    """A listener gone for minutes gets the latest BUFFER_S seconds, not all of them (bounded)."""
+    sim = backend()
+    microphone = sim.devices["microphone"]
+    buffered = round(SimMicrophone.BUFFER_S * 16000)
+    run(sim, 10 * 60 + 4)  # a minute and a bit at 10 Hz, nobody reading
+    late = microphone.read()
+    assert late.size == buffered and microphone.dropped == 16000 * 60.4 - buffered
+    run(sim, 3)
+    after = microphone.read()
+    other = backend()  # read at every tick: the kept audio and what follows are the same samples
+    heard = []
+    for _ in range(10 * 60 + 7):
+        run(other, 1)
+        heard.append(other.devices["microphone"].read())
+    whole = np.concatenate(heard)
+    assert np.array_equal(np.concatenate([late, after]), whole[-(buffered + after.size) :])
+    assert other.devices["microphone"].dropped == 0
+
+
 def test_recording_starts_when_the_microphone_is_made() -> None:
     sim = backend()
     run(sim, 5)

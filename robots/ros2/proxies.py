@@ -31,15 +31,13 @@ from typing import Any
 import numpy as np
 
 from robots.clock import Clock
-from robots.interfaces import AUDIO_RATE_HZ, CameraInfo, OdometryReading, Pose2D, TrackedPerson, Twist2D
+from robots.interfaces import AUDIO_BUFFER_S, AUDIO_RATE_HZ, CameraInfo, OdometryReading, Pose2D, TrackedPerson, Twist2D
 from robots.ros2 import botstage_messages as own
 from robots.ros2 import readings
 from robots.ros2.attachment import Attachment
 from robots.ros2.node import Publisher
 
 log = logging.getLogger(__name__)
-
-AUDIO_BUFFER_S = 30.0  # audio kept between two reads of the microphone; older samples are dropped
 
 
 class StaleReadingError(RuntimeError):

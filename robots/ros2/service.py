@@ -77,6 +77,19 @@ class ServiceCancelled(ServiceError):
 
 
 _UNMATCHED = object()  # a reply for another call: keep waiting
+_ZENOH_TIMEOUT = b"Timeout"  # the error Zenoh replies itself when a query's time is up
+
+
+def is_zenoh_timeout(reply: zenoh.Reply) -> bool:
+    """Whether ``reply`` is Zenoh's own "the query timed out", not a server's answer.
+
+    The caller's session sends it with no replier; under load the server's session can send it
+    first, naming itself as the replier. Either way it has no attachment and says "Timeout" (a
+    botstage server's errors always give a reason, and rmw_zenoh's servers send none).
+    """
+    if reply.err is None:
+        return False
+    return reply.replier_id is None or reply.err.payload.to_bytes() == _ZENOH_TIMEOUT
 
 
 def _settle(future: Future, result: Any = None, error: BaseException | None = None) -> bool:
@@ -366,7 +379,7 @@ class ServiceClient(_Entity):
             )
             replied = timed_out = False
             for reply in replies:
-                if reply.err is not None and reply.replier_id is None:  # Zenoh's own: the query timed out
+                if is_zenoh_timeout(reply):
                     timed_out = True
                     continue
                 replied = True

@@ -18,6 +18,7 @@ import numpy as np
 from robots.clock import Clock
 from robots.gaits import GaitOdometry, Gaits, choose
 from robots.interfaces import (
+    AUDIO_BUFFER_S,
     BatteryState,
     CameraInfo,
     ImuReading,
@@ -284,10 +285,16 @@ class SimMicrophone:
     no gap and no overlap, whatever the tick rate. Recording starts when the microphone is made:
     the first read returns the samples since then (since t = 0 for a backend made at the
     start). The noise is drawn sample by sample from ``world.noise("microphone")``, so the audio is
-    the same however it is read."""
+    the same however it is read.
+
+    Like a sound card's ring buffer, it keeps at most ``BUFFER_S`` seconds between reads: a read
+    after a longer pause (a listener that was gone) returns only the latest ``BUFFER_S`` seconds and
+    counts the samples dropped before them in ``dropped``."""
 
     RATE = 16_000  # samples a second
     NOISE_DBFS = -50.0  # the room's hum, as RMS relative to full scale
+    BUFFER_S = AUDIO_BUFFER_S  # audio kept between two reads; older samples are dropped
+    _SKIP_CHUNK = 16_000  # noise drawn (and thrown away) this many samples at a time for dropped audio
 
     def __init__(self, world: World, clock: Clock) -> None:
         self.world = world
@@ -295,6 +302,7 @@ class SimMicrophone:
         self._next = self._samples_until(clock.now())  # index of the next sample to deliver
         self._sounds: list[tuple[int, np.ndarray]] = []  # (first sample index, samples as int32)
         self._noise_std = 32768 * 10 ** (self.NOISE_DBFS / 20)
+        self.dropped = 0  # samples lost because nobody read them within BUFFER_S
 
     def use_clock(self, clock: Clock) -> None:
         """Hear on this clock from now on (a run's clock that starts once the robot is up)."""
@@ -324,7 +332,13 @@ class SimMicrophone:
         if end <= start:
             return np.zeros(0, np.int16)
         self._next = end
-        mixed = self.world.noise("microphone").normal(0.0, self._noise_std, end - start)
+        noise = self.world.noise("microphone")
+        kept = round(self.BUFFER_S * self.RATE)
+        if end - start > kept:  # an overrun: the oldest audio is lost, the noise stream goes on as if heard
+            self._skip_noise(noise, end - kept - start)
+            self.dropped += end - kept - start
+            start = end - kept
+        mixed = noise.normal(0.0, self._noise_std, end - start)
         playing = []
         for first, sound in self._sounds:
             a, b = max(first, start), min(first + sound.size, end)
@@ -334,6 +348,13 @@ class SimMicrophone:
                 playing.append((first, sound))
         self._sounds = playing
         return np.clip(np.round(mixed), -32768, 32767).astype(np.int16)
+
+    def _skip_noise(self, noise: np.random.Generator, count: int) -> None:
+        """Draw ``count`` noise samples and drop them, in bounded chunks, so what follows is unchanged."""
+        while count > 0:
+            step = min(count, self._SKIP_CHUNK)
+            noise.normal(0.0, self._noise_std, step)
+            count -= step
 
 
 class SimGaitDrive:
