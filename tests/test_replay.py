@@ -37,10 +37,11 @@ def replay(run_folder: Path, tmp_path: Path, name: str = "replay") -> tuple[dict
     return spec, tmp_path / f"{name}-run"
 
 
-# the face tracker renders and runs the chapter's detector on 600 frames a run (~40 s on two
-# cores): two seeds of it keep CI's budget; every other mission replays five
-HEAVY = {"face_tracker": (1, 2)}
-RUNS = [(m, seed) for m in MISSIONS for seed in HEAVY.get(m.stem, (1, 2, 3, 4, 5))]
+# Two seeds a mission keep CI's budget: seed 1 and a second that differs from mission to
+# mission, so seeds 2 to 5 are all replayed somewhere. The face tracker renders and runs the
+# chapter's detector on 600 frames a run (~40 s on two cores): seed 1 only.
+HEAVY = {"face_tracker": (1,)}
+RUNS = [(m, seed) for i, m in enumerate(MISSIONS) for seed in HEAVY.get(m.stem, (1, 2 + i % 4))]
 
 
 @pytest.mark.parametrize(("mission", "seed"), RUNS, ids=[f"{m.stem}-{seed}" for m, seed in RUNS])
