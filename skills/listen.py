@@ -2,7 +2,9 @@
 
 The microphone is read every tick and its audio goes through voice activity detection in the
 tick (a few microseconds of numpy a chunk); an utterance that has ended goes to the recogniser
-through ``ctx.submit``, so decoding never blocks a tick. An utterance the recogniser rejects
+through ``ctx.submit``, so decoding never blocks a tick. Commands go to the speech-embedding
+recogniser (skills/speech/embedding.py) unless the ``recognizer`` parameter says
+``pocketsphinx``; free speech always goes to pocketsphinx. An utterance the recogniser rejects
 (out of the grammar, too unsure) does not end the skill: it listens on until ``timeout``.
 
 Outcomes: ``heard`` (the success outcome; outputs command, text, confidence), ``silence``
@@ -12,12 +14,12 @@ it was accepted before ``timeout``), ``failure`` (no microphone, bad inputs).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
 from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.speech.recognizer import COMMANDS, MODES, Recognition, shared_recognizer
+from skills.speech.recognizer import COMMANDS, MODES, Recognition, recognizer_named
 from skills.speech.vad import VoiceActivityDetector
 from skills.speech.wav import RATE
 
@@ -33,6 +35,10 @@ class ListenParams(BaseModel):
     end_silence: float = Field(default=0.5, gt=0, description="s of quiet that ends an utterance")
     max_utterance: float = Field(default=5.0, gt=0, description="s: a longer utterance is cut and decoded")
     context: float = Field(default=0.3, ge=0, description="s of audio from before the skill started that it keeps")
+    recognizer: Literal["embedding", "pocketsphinx"] = Field(
+        default="embedding",
+        description="commands: the speech-embedding classifier or pocketsphinx (free speech: always pocketsphinx)",
+    )
 
 
 class Listen(Skill):
@@ -70,7 +76,7 @@ class Listen(Skill):
             end_silence=params.end_silence,
             max_utterance=params.max_utterance,
         )
-        recognizer = shared_recognizer()
+        recognizer = recognizer_named(params.recognizer)
         earlier = microphone.read()  # what it heard before we listened: only the room's level matters
         keep = round(params.context * RATE)
         if keep and earlier.size:

@@ -53,8 +53,14 @@ class Rig:
         self.microphone.play(samples, at)
         return at + samples.size / 16000
 
-    def listen(self, limit: float = 60.0, interfaces: dict[str, Any] | None = None, **inputs: Any) -> Outcome:
-        skill = Listen()
+    def listen(
+        self,
+        limit: float = 60.0,
+        interfaces: dict[str, Any] | None = None,
+        params: dict[str, Any] | None = None,
+        **inputs: Any,
+    ) -> Outcome:
+        skill = Listen(params or {})
         ctx = SkillContext(
             clock=self.clock,
             params=skill.params,
@@ -88,6 +94,15 @@ def test_a_command_played_into_the_microphone_is_heard(command: str) -> None:
     assert 0.0 < outcome.outputs["confidence"] <= 1.0
     # heard once the quiet after it ended the utterance: after the word, within a second of it
     assert end < rig.ended < end + 1.0
+
+
+@pytest.mark.parametrize("recognizer", ["embedding", "pocketsphinx"])
+def test_either_recogniser_hears_a_command_and_the_embedding_is_the_default(recognizer: str) -> None:
+    assert Listen().params.recognizer == "embedding"  # type: ignore[attr-defined]
+    rig = Rig()
+    rig.play("cancel", at=1.0)
+    outcome = rig.listen(timeout=10.0, params={"recognizer": recognizer})
+    assert outcome.name == "heard" and outcome.outputs["command"] == "CANCEL", outcome.reason
 
 
 def test_heard_is_the_success_outcome() -> None:

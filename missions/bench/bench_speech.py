@@ -35,7 +35,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.signal import resample_poly
 
-from skills.speech.recognizer import COMMANDS, Recognizer
+from skills.speech.embedding import EmbeddingRecognizer
+from skills.speech.recognizer import COMMANDS, CommandRecognizer, Recognizer
 from skills.speech.vad import find_utterances
 
 SAY = {"PHOTO": "photo", "YES": "yes", "WHATSUP": "what's up", "CANCEL": "cancel", "CIAO": "ciao"}
@@ -101,9 +102,9 @@ TUNE_PHRASES = (
     "is this the museum",
     "wonderful",
     "please wait",
-    "photo booth",
+    "motor boat",
     "counsel",
-    "yes please",
+    "bless you",
     "how",
     "what's that",
     "cancer",
@@ -121,7 +122,7 @@ TUNE_PHRASES = (
 )
 CONDITIONS = (("clean", None), ("white", 20.0), ("white", 10.0), ("pink", 20.0), ("pink", 10.0))
 PAPER = {"PHOTO": 61.667, "YES": 70.0, "WHATSUP": 49.583, "CIAO": 32.5, "CANCEL": 22.917, "overall": 47.0}
-TARGETS = {"overall_10db": 95.0, "false_accepts": 5.0, "rtf": 0.1}
+TARGETS = {"overall_10db": 95.0, "overall_clean": 97.0, "false_accepts": 5.0, "rtf": 0.1}
 ROOM_DBFS = -50.0
 PAD = 8000  # half a second of noise before and after
 
@@ -192,46 +193,59 @@ def mix(samples: np.ndarray, kind: str, snr_db: float | None, seed: int) -> np.n
     return np.clip(np.round(background), -32768, 32767).astype(np.int16)
 
 
-def recognise_file(recognizer: Recognizer, samples: np.ndarray) -> tuple[str, float]:
-    """What `botstage speech recognize` prints for these samples, and the seconds decoding took."""
-    spent, command = 0.0, ""
+def recognise_file(recognizer: CommandRecognizer, samples: np.ndarray) -> tuple[str, float]:
+    """What `botstage speech recognize` prints for these samples, and the seconds it took: the
+    voice activity detector and the recogniser both (the real-time factor counts the VAD)."""
+    command = ""
+    start = time.perf_counter()
     for utterance in find_utterances(samples):
-        start = time.perf_counter()
         result = recognizer.recognize(utterance.samples)
-        spent += time.perf_counter() - start
         if result.accepted:
             command = result.command
             break
-    return command, spent
+    return command, time.perf_counter() - start
 
 
-def evaluate(recognizer: Recognizer, made: list[Trial], conditions=CONDITIONS) -> dict[str, Any]:
-    per: dict[str, Any] = {}
-    decode_s = audio_s = 0.0
+def evaluate(
+    recognizers: CommandRecognizer | dict[str, CommandRecognizer], made: list[Trial], conditions=CONDITIONS
+) -> dict[str, Any]:
+    """Each trial in each condition, the same noisy audio given to every recogniser. With one
+    recogniser (not a dict) the result is that recogniser's alone."""
+    named = recognizers if isinstance(recognizers, dict) else {"recognizer": recognizers}
+    per: dict[str, dict[str, Any]] = {name: {} for name in named}
+    spent = dict.fromkeys(named, 0.0)
+    audio_s = 0.0
     for kind, snr in conditions:
         name = kind if snr is None else f"{kind}_{snr:g}db"
-        hits = {c: [0, 0] for c in COMMANDS}
-        false_accepts, phrases = 0, 0
+        hits = {r: {c: [0, 0] for c in COMMANDS} for r in named}
+        false_accepts = dict.fromkeys(named, 0)
+        phrases = 0
         for seed, trial in enumerate(made):
             audio = mix(trial.samples, kind, snr, seed)
-            command, spent = recognise_file(recognizer, audio)
-            decode_s += spent
             audio_s += audio.size / 16000
-            if trial.label is None:
-                phrases += 1
-                false_accepts += bool(command)
-            else:
-                hits[trial.label][0] += command == trial.label
-                hits[trial.label][1] += 1
-        said = sum(n for _, n in hits.values())
-        per[name] = {
-            "words": {c: round(100 * h / n, 1) for c, (h, n) in hits.items() if n},
-            "overall": round(100 * sum(h for h, _ in hits.values()) / max(said, 1), 1),
-            "false_accepts": round(100 * false_accepts / max(phrases, 1), 1),
-            "trials": said,
-            "phrases": phrases,
-        }
-    return {"conditions": per, "rtf": round(decode_s / max(audio_s, 1e-9), 4), "audio_s": round(audio_s, 1)}
+            phrases += trial.label is None
+            for r, recognizer in named.items():
+                command, seconds = recognise_file(recognizer, audio)
+                spent[r] += seconds
+                if trial.label is None:
+                    false_accepts[r] += bool(command)
+                else:
+                    hits[r][trial.label][0] += command == trial.label
+                    hits[r][trial.label][1] += 1
+        for r in named:
+            said = sum(n for _, n in hits[r].values())
+            per[r][name] = {
+                "words": {c: round(100 * h / n, 1) for c, (h, n) in hits[r].items() if n},
+                "overall": round(100 * sum(h for h, _ in hits[r].values()) / max(said, 1), 1),
+                "false_accepts": round(100 * false_accepts[r] / max(phrases, 1), 1),
+                "trials": said,
+                "phrases": phrases,
+            }
+    results = {
+        r: {"conditions": per[r], "rtf": round(spent[r] / max(audio_s, 1e-9), 4), "audio_s": round(audio_s, 1)}
+        for r in named
+    }
+    return results if isinstance(recognizers, dict) else results["recognizer"]
 
 
 def table(result: dict[str, Any]) -> str:
@@ -243,7 +257,38 @@ def table(result: dict[str, Any]) -> str:
         row = [conditions[n]["words"].get(word) if word != "overall" else conditions[n]["overall"] for n in names]
         lines.append(f"{word:10}" + "".join(f"{v:>11.1f}%" for v in row) + f"{PAPER[word]:>9.1f}%")
     lines.append(f"{'false acc.':10}" + "".join(f"{conditions[n]['false_accepts']:>11.1f}%" for n in names))
-    lines.append(f"real-time factor {result['rtf']} over {result['audio_s']} s of audio")
+    lines.append(f"real-time factor {result['rtf']} (VAD included) over {result['audio_s']} s of audio")
+    return "\n".join(lines)
+
+
+def side_by_side(results: dict[str, dict[str, Any]]) -> str:
+    """Per word and condition, each recogniser's rate in one cell: ``embedding / pocketsphinx``."""
+    names = list(results)
+    conditions = list(results[names[0]]["conditions"])
+    width = max(8 * len(names), max(len(c) for c in conditions) + 2)
+    head = f"{'word':10}" + "".join(f"{n:>{width}}" for n in conditions) + f"{'paper':>9}"
+    lines = [f"each cell: {' / '.join(names)} (%)", head, "-" * len(head)]
+
+    def cell(values: list[float]) -> str:
+        return f"{' / '.join(f'{v:5.1f}' for v in values):>{width}}"
+
+    for word in (*COMMANDS, "overall", "false acc."):
+        row = []
+        for c in conditions:
+            got = [results[n]["conditions"][c] for n in names]
+            if word == "overall":
+                row.append(cell([g["overall"] for g in got]))
+            elif word == "false acc.":
+                row.append(cell([g["false_accepts"] for g in got]))
+            else:
+                row.append(cell([g["words"][word] for g in got]))
+        paper = f"{PAPER[word]:>8.1f}%" if word in PAPER else ""
+        lines.append(f"{word:10}" + "".join(row) + paper)
+    lines.append(
+        "real-time factor (VAD included): "
+        + ", ".join(f"{n} {results[n]['rtf']}" for n in names)
+        + f" over {results[names[0]]['audio_s']} s of audio"
+    )
     return "\n".join(lines)
 
 
@@ -281,18 +326,27 @@ def tune(quick: bool = False) -> list[dict[str, Any]]:
 
 
 def missed(results: list[dict[str, Any]]) -> list[str]:
-    """The conditions under their recognition target at 10 dB, or over the false accepts allowed."""
-    return [
-        name
-        for r in results
-        if r.get("bench") == "speech_commands"
-        for name, c in r["conditions"].items()
-        if (name.endswith("_10db") and c["overall"] < r["targets"]["overall_10db"])
-        or c["false_accepts"] > r["targets"]["false_accepts"]
-    ]
+    """The default recogniser's conditions under their recognition targets (95 % at 10 dB, 97 %
+    clean), over the false accepts allowed, or over the real-time factor allowed."""
+    out = []
+    for r in results:
+        if r.get("bench") != "speech_commands":
+            continue
+        default = r["recognizers"][r["default"]]
+        targets = r["targets"]
+        for name, c in default["conditions"].items():
+            if (name.endswith("_10db") and c["overall"] < targets["overall_10db"]) or (
+                name == "clean" and c["overall"] < targets["overall_clean"]
+            ):
+                out.append(f"{name} {c['overall']} %")
+            if c["false_accepts"] > targets["false_accepts"]:
+                out.append(f"{name} false accepts {c['false_accepts']} %")
+        if default["rtf"] > targets["rtf"]:
+            out.append(f"real-time factor {default['rtf']}")
+    return out
 
 
-def main(quick: bool = False, sweep: bool = False) -> list[dict[str, Any]]:
+def main(quick: bool = False, sweep: bool = False, only: str | None = None) -> list[dict[str, Any]]:
     if espeak() is None:
         print("espeak-ng is missing: the speech benchmark makes its audio with it (apt-get install espeak-ng)")
         return []
@@ -304,18 +358,23 @@ def main(quick: bool = False, sweep: bool = False) -> list[dict[str, Any]]:
         conditions = (CONDITIONS[0], CONDITIONS[2], CONDITIONS[4])
     else:
         made, conditions = trials(VOICES, PHRASES), CONDITIONS
-    result = evaluate(Recognizer(), made, conditions)
+    recognizers: dict[str, CommandRecognizer] = {"embedding": EmbeddingRecognizer(), "pocketsphinx": Recognizer()}
+    if only is not None:
+        recognizers = {only: recognizers[only]}
+    results = evaluate(recognizers, made, conditions)
     summary = {
         "bench": "speech_commands",
+        "default": "embedding" if "embedding" in recognizers else next(iter(recognizers)),
         "voices": len({t.voice for t in made}),
         "speeds": sorted({t.speed for t in made}),
-        **result,
+        "pitches": sorted({t.pitch for t in made}),
+        "recognizers": results,
         "paper": PAPER,
         "targets": TARGETS,
         "wall_s": round(time.perf_counter() - start, 1),
     }
     print(json.dumps(summary), flush=True)
-    print(table(result), flush=True)
+    print(side_by_side(results), flush=True)
     return [summary]
 
 

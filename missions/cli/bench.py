@@ -132,12 +132,17 @@ def bench_delivery(quick: bool = typer.Option(False, help="one seed: a smoke tes
 @bench_app.command("speech")
 def bench_speech(
     quick: bool = typer.Option(False, help="three voices, one speed, three conditions: a smoke test"),
-    tune: bool = typer.Option(False, help="sweep the recogniser's thresholds on the tuning voices instead"),
+    tune: bool = typer.Option(False, help="sweep pocketsphinx's thresholds on the tuning voices instead"),
+    only: str = typer.Option(None, help="one recogniser (embedding or pocketsphinx) instead of both side by side"),
 ) -> None:
-    """Command recognition rate per word (clean, white and pink noise at 20 and 10 dB), false accepts, RTF."""
+    """Both command recognisers side by side: rate per word (clean, white and pink noise at 20 and
+    10 dB), false accepts, real-time factor with the VAD."""
     from missions.bench import bench_speech as bench
 
-    results = bench.main(quick=quick, sweep=tune)
+    if only not in (None, "embedding", "pocketsphinx"):
+        _stderr([f"error: --only must be embedding or pocketsphinx, got {only!r}"])
+        raise typer.Exit(2)
+    results = bench.main(quick=quick, sweep=tune, only=only)
     if not results and not tune:
         raise typer.Exit(1)  # espeak-ng missing: said why
     missed = bench.missed(results)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skills.speech.recognizer import Recognizer
+from skills.speech.recognizer import CommandRecognizer
 from skills.speech.vad import find_utterances
 
 
@@ -17,7 +17,7 @@ class Heard:
     clipped: float  # the largest clipped share among the utterances tried: a recording made too loud
 
 
-def recognize_recording(recognizer: Recognizer, samples: np.ndarray, mode: str = "command") -> Heard:
+def recognize_recording(recognizer: CommandRecognizer, samples: np.ndarray, mode: str = "command") -> Heard:
     clipped = 0.0
     for utterance in find_utterances(samples):
         result = recognizer.recognize(utterance.samples, mode)
