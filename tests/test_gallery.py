@@ -17,7 +17,8 @@ import httpx
 import numpy as np
 import pytest
 
-from missions.gallery.server import RunningGallery, bind, is_loopback, start_gallery
+from missions.gallery.server import RunningGallery, start_gallery
+from missions.serving import bind, is_loopback
 from tests.test_outbox import TOKEN, make_photo, photos_in, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -26,7 +26,8 @@ def gallery(
     """
     import os
 
-    from missions.gallery.server import GalleryError, is_loopback, serve
+    from missions.gallery.server import GalleryError, serve
+    from missions.serving import is_loopback
     from skills.outbox.settings import TOKEN_ENV
 
     token = os.environ.get(TOKEN_ENV) or None

@@ -8,12 +8,8 @@ shuts the server down and frees the port, and a gallery started again on the sam
 
 from __future__ import annotations
 
-import ipaddress
 import logging
-import socket
 import sqlite3
-import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +18,7 @@ import uvicorn
 
 from missions.gallery.app import DEFAULT_MAX_BYTES, create_app
 from missions.gallery.images import DEFAULT_MAX_PIXELS
+from missions.serving import ServerThread, app_config, bind, start_server
 
 _log = logging.getLogger("botstage.gallery")
 DEFAULT_HOST = "127.0.0.1"
@@ -32,43 +29,12 @@ class GalleryError(Exception):
     """The gallery cannot open its folder (not a folder, not writable, a damaged index)."""
 
 
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def bind(host: str, port: int) -> socket.socket:
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-        sock.listen(128)
-    except OSError:
-        sock.close()
-        raise
-    sock.setblocking(False)
-    return sock
-
-
 def _config(
     folder: Path, host: str, port: int, token: str | None, limits: tuple[int, int], access_log: bool
 ) -> uvicorn.Config:
     max_bytes, max_pixels = limits
-    return uvicorn.Config(
-        create_app(folder, token=token, max_bytes=max_bytes, max_pixels=max_pixels),
-        host=host,
-        port=port,
-        log_level="info" if access_log else "warning",
-        access_log=access_log,
-        lifespan="off",
-        timeout_graceful_shutdown=2,
-        server_header=False,
-    )
+    app = create_app(folder, token=token, max_bytes=max_bytes, max_pixels=max_pixels)
+    return app_config(app, host, port, access_log=access_log)
 
 
 def serve(
@@ -105,28 +71,24 @@ class RunningGallery:
     folder: Path
     host: str
     port: int
-    server: uvicorn.Server = field(repr=False)
-    thread: threading.Thread = field(repr=False)
-    sock: socket.socket = field(repr=False)
+    running: ServerThread = field(repr=False)
 
     @property
     def url(self) -> str:
-        host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"http://{host}:{self.port}"
+        return self.running.url
 
     @property
     def upload_url(self) -> str:
         return f"{self.url}/photos"
 
+    @property
+    def server(self) -> uvicorn.Server:
+        return self.running.server
+
     def stop(self, timeout: float = 10.0) -> None:
         """Shut down and free the port (bounded: a stuck connection does not hang the caller)."""
-        self.server.should_exit = True
-        self.thread.join(timeout)
-        if self.thread.is_alive():
-            self.server.force_exit = True
-            self.thread.join(timeout)
-        self.sock.close()
-        self.server.config.app.state.store.close()
+        self.running.stop(timeout)
+        self.running.server.config.app.state.store.close()
 
     def __enter__(self) -> RunningGallery:
         return self
@@ -149,16 +111,7 @@ def start_gallery(
     folder = Path(folder)
     sock = bind(host, port)
     port = sock.getsockname()[1]
-    server = uvicorn.Server(_config(folder, host, port, token, (max_bytes, max_pixels), access_log=False))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name=f"gallery-{port}", daemon=True)
-    thread.start()
-    deadline = time.monotonic() + timeout
-    while not server.started:  # a bounded wait for the server to come up, never a timing assumption
-        if not thread.is_alive() or time.monotonic() > deadline:
-            server.should_exit = True
-            thread.join(timeout)
-            sock.close()
-            raise RuntimeError(f"the gallery did not start on {host}:{port} within {timeout:g} s")
-        time.sleep(0.005)
-    _log.info("gallery serving %s at http://%s:%d", folder, host, port)
-    return RunningGallery(folder, host, port, server, thread, sock)
+    config = _config(folder, host, port, token, (max_bytes, max_pixels), access_log=False)
+    running = start_server(config, sock, "gallery", timeout)
+    _log.info("gallery serving %s at %s", folder, running.url)
+    return RunningGallery(folder, host, port, running)
