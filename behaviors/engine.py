@@ -19,6 +19,7 @@ from behaviors.builder import Builder
 from behaviors.kinds import NodeKinds
 from behaviors.trace import Trace
 from robots.clock import Clock, SimClock
+from skills.base import Outcome
 from skills.registry import Registry
 from skills.workers import Workers
 
@@ -51,6 +52,7 @@ class Engine:
         self.status = Status.INVALID
         self.error: str | None = None
         self._last: dict[py_trees.behaviour.Behaviour, Status] = {}
+        self.forces: dict[str, Outcome] = {}  # see Runtime.forces
 
     # -- building ---------------------------------------------------------------------------
 
@@ -141,6 +143,14 @@ class Engine:
                     self.root.stop(Status.INVALID)
                 except Exception as exc:
                     self.trace.emit("error", f"while halting: {type(exc).__name__}: {exc}")
+                self._note_halted()
+
+    def _note_halted(self) -> None:
+        """Composites and machines halted with the root: their RUNNING ends in the trace too (skills
+        said so as they were cancelled), so a halted tree never shows as running."""
+        for node, last in self._last.items():
+            if last is Status.RUNNING and node.status is Status.INVALID:
+                self.note_halt(node)
 
     def close(self, reason: str = "shutdown") -> None:
         self.halt(reason)

@@ -440,7 +440,9 @@ def to_mermaid(item: Item, statuses: Statuses | None = None) -> str:
 # -- json -------------------------------------------------------------------------------------
 
 
-def to_json(item: Item, statuses: Statuses | None = None) -> str:
+def to_plain(item: Item, statuses: Statuses | None = None) -> dict[str, Any]:
+    """The picture as plain data (what ``--format json`` prints and the live monitor draws)."""
+
     def plain(it: Item) -> dict[str, Any]:
         out: dict[str, Any] = {"path": it.path, "kind": it.kind, "title": it.title}
         if it.details:
@@ -457,7 +459,11 @@ def to_json(item: Item, statuses: Statuses | None = None) -> str:
             out["children"] = [plain(c) for c in it.children]
         return out
 
-    return json.dumps(plain(item), indent=2) + "\n"
+    return plain(item)
+
+
+def to_json(item: Item, statuses: Statuses | None = None) -> str:
+    return json.dumps(to_plain(item, statuses), indent=2) + "\n"
 
 
 def render(item: Item, fmt: str, statuses: Statuses | None = None) -> bytes:

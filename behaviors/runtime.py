@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from behaviors.blackboard import Blackboard
     from behaviors.trace import Trace
     from robots.clock import Clock
+    from skills.base import Outcome
     from skills.registry import Registry
     from skills.workers import Workers
 
@@ -31,6 +32,9 @@ class Runtime(Protocol):
     interfaces: Mapping[str, Any]
     registry: Registry
     seed: int
+    # outcomes an operator forces (fault injection, the live monitor): by node path or skill name,
+    # each taken by the next tick of a node it names, which ends with it instead of running on
+    forces: dict[str, Outcome]
 
     @property
     def halt_reason(self) -> str:

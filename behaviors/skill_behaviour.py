@@ -140,6 +140,8 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
         self._first = self.execution.start(inputs)
 
     def update(self) -> Status:
+        if self.runtime.forces and (forced := self._take_forced()) is not None:
+            return self._finish(forced)
         if self._fresh:
             self._fresh = False
             outcome = self._first
@@ -161,6 +163,18 @@ class SkillBehaviour(py_trees.behaviour.Behaviour):
             self.feedback_message = f"cancelled: {reason}"
 
     # -- internals --------------------------------------------------------------------------
+
+    def _take_forced(self) -> Outcome | None:
+        """An outcome the operator forces on this node (by path, else by skill): the running call
+        is cancelled (its finally runs) and the node ends with the forced outcome instead."""
+        forces = self.runtime.forces
+        forced = forces.pop(self.path, None) or forces.pop(self.skill.name, None)
+        if forced is None:
+            return None
+        self._fresh, self._first = False, None
+        if self.execution.running:
+            self.execution.cancel()
+        return forced
 
     def _resolve_inputs(self) -> dict[str, Any]:
         get = self.access.get

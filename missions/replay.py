@@ -29,7 +29,7 @@ from skills.registry import Registry
 # a replay, unless the recorded run was a scenario that mocked them.
 BOOKKEEPING = frozenset({"check", "count", "log", "set", "wait", "wait_for"})
 # Writers of blackboard writes that come from outside the mission (a scenario's events): replayed as events.
-EXTERNAL_WRITERS = frozenset({"scenario", "mission"})
+EXTERNAL_WRITERS = frozenset({"scenario", "mission", "monitor"})  # monitor: an operator
 # How a run that the operator stopped is replayed: up to the tick it was stopped at.
 INTERRUPTED = "interrupted"
 

@@ -8,6 +8,7 @@ with its name, reports how each ended, and stops them all when the mission ends 
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import sys
 from pathlib import Path
@@ -15,6 +16,7 @@ from pathlib import Path
 import typer
 
 from missions.cli.common import NON_NEGATIVE, _fail, console
+from missions.cli.monitor import HOST_HELP, live_monitor
 
 CONNECT_HELP = "the Zenoh endpoint of the deployment's router process, e.g. tcp/192.168.1.10:7447"
 
@@ -50,6 +52,10 @@ def process(
     backend_opt: list[str] = typer.Option(
         [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"
     ),
+    monitor_port: int | None = typer.Option(
+        None, help="the mission's process: serve the live monitor on this port (0: a free one)", min=0, max=65535
+    ),
+    monitor_host: str = typer.Option("127.0.0.1", help=HOST_HELP),
 ) -> None:
     """Run one process of a deployment (its robot, skills or mission) and serve it until Ctrl-C."""
     from missions.cli.backends import backend_options
@@ -57,19 +63,22 @@ def process(
 
     _check(deployment)
     given = BackendGiven(backend, backend_options(backend_opt), port)
+    watching = live_monitor(monitor_host, monitor_port, False) if monitor_port is not None else contextlib.nullcontext()
     try:
-        code = serve_process(
-            deployment,
-            name,
-            out=out,
-            seed=seed,
-            until=until,
-            connect=connect,
-            listen=listen or None,
-            ready=lambda line: print(line, flush=True),
-            certs=certs,
-            backend=given,
-        )
+        with watching as observer:
+            code = serve_process(
+                deployment,
+                name,
+                out=out,
+                seed=seed,
+                until=until,
+                connect=connect,
+                listen=listen or None,
+                ready=lambda line: print(line, flush=True),
+                certs=certs,
+                backend=given,
+                observers=[observer] if observer is not None else [],
+            )
     except DeploymentError as error:
         raise _fail(str(error), 2) from None
     raise typer.Exit(code)
@@ -83,8 +92,10 @@ def process_commands(
     seed: int | None = None,
     until: float | None = None,
     certs: Path | None = None,
+    monitor_port: int | None = None,
 ) -> dict[str, list[str]]:
-    """Each process's ``serve process`` command, the router first: it listens on ``endpoint``, the others connect."""
+    """Each process's ``serve process`` command, the router first: it listens on ``endpoint``, the others
+    connect; ``monitor_port``: the mission's process serves the live monitor there."""
     from missions.deployment import check_deployment
 
     checked = check_deployment(deployment)
@@ -95,7 +106,10 @@ def process_commands(
     base += ["--certs", str(certs)] if certs is not None else []
     router = checked.router
     names = [router, *[n for n in checked.deployment.processes if n != router]]
-    return {name: [*base, name, "--listen" if name == router else "--connect", endpoint] for name in names}
+    commands = {name: [*base, name, "--listen" if name == router else "--connect", endpoint] for name in names}
+    if monitor_port is not None:
+        commands[checked.mission_process] += ["--monitor-port", str(monitor_port)]
+    return commands
 
 
 def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
@@ -124,6 +138,8 @@ def up(
         False,
         help="mutual TLS and the deployment's access policy, certificates made in OUT/certs (kept for next runs)",
     ),
+    monitor: bool = typer.Option(False, "--monitor", help="the mission's process serves the live monitor"),
+    monitor_port: int = typer.Option(8470, help="the monitor's port (loopback)", min=0, max=65535),
 ) -> None:
     """Start every process of a deployment on this machine (loopback) and stop them together."""
     from missions.deployment import check_deployment
@@ -135,7 +151,10 @@ def up(
     router = checked.router
     endpoint = f"{'tls' if secure else 'tcp'}/127.0.0.1:{port or free_port()}"
     certs = _loopback_certificates(out / "certs", list(checked.deployment.processes)) if secure else None
-    commands = process_commands(deployment, endpoint, out=out, seed=seed, until=until, certs=certs)
+    watched = monitor_port if monitor else None
+    commands = process_commands(
+        deployment, endpoint, out=out, seed=seed, until=until, certs=certs, monitor_port=watched
+    )
     names = list(commands)
     width = max(len(name) for name in names)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -24,6 +25,7 @@ from missions.cli.common import (
     output_dir,
     output_file,
 )
+from missions.cli.monitor import HOST_HELP, live_monitor
 from robots.backend_registry import DEFAULT
 from robots.limits import MAX_SECONDS
 
@@ -99,8 +101,15 @@ def run(
         None, help="run folder (default: runs/<mission>-<timestamp>/)", callback=output_dir
     ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no live display"),
+    monitor: bool = typer.Option(False, "--monitor", help="serve the live monitor while the mission runs"),
+    monitor_port: int = typer.Option(8470, help="the monitor's port (0: a free one)", min=0, max=65535),
+    monitor_host: str = typer.Option("127.0.0.1", help=HOST_HELP),
+    paused: bool = typer.Option(False, "--paused", help="with --monitor: hold the run before its first tick"),
 ) -> None:
     """Run a mission and write its run folder (trace.jsonl, summary.json, report.html).
+
+    With --monitor a web page shows the run live and steers it (pause, breakpoints, forced
+    outcomes, e-stop); add --realtime to watch a simulation at the robot's own pace.
 
     Exit status: 0 success or time limit, 1 nothing ran (invalid mission, a file), 2 usage,
     3 the mission ended in failure, 4 the run stopped on an error, 130 interrupted.
@@ -118,12 +127,18 @@ def run(
         "backend_options": backend_options(backend_opt),
         "observers": observers(observe),
     }
+    if paused and not monitor:
+        raise _fail("error: --paused holds the run for the monitor: add --monitor", 2)
+    watching = live_monitor(monitor_host, monitor_port, paused) if monitor else contextlib.nullcontext()
     try:
-        if quiet or not console.is_terminal:
-            result = run_mission(mission, **given)
-        else:
-            with Live(console=console, refresh_per_second=8, transient=True) as live:
-                result = run_mission(mission, progress=_live_progress(live), **given)
+        with watching as observer:
+            if observer is not None:
+                given["observers"] = [*given["observers"], observer]
+            if quiet or not console.is_terminal:
+                result = run_mission(mission, **given)
+            else:
+                with Live(console=console, refresh_per_second=8, transient=True) as live:
+                    result = run_mission(mission, progress=_live_progress(live), **given)
     except MissionInvalid as exc:
         raise _fail([str(p) for p in exc.problems]) from None
     except RunError as exc:

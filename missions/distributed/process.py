@@ -24,7 +24,7 @@ import logging
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -378,8 +378,11 @@ def serve_process(
     stop: threading.Event | None = None,
     certs: Path | None = None,
     backend: BackendGiven | None = None,
+    observers: Sequence[object] = (),
 ) -> int:
     """Run process ``name`` of the deployment at ``path`` until it is stopped (or its mission ends).
+
+    ``observers`` watch the mission's run (the live monitor): for the process that runs it only.
 
     With ``certs`` (missions/distributed/security.py) it speaks only mutual TLS under the
     deployment's access policy, and may listen beyond loopback. ``backend`` is this machine's
@@ -387,6 +390,8 @@ def serve_process(
     on the robot's computer).
     """
     role = Role.of(path, name)
+    if observers and not role.runs_mission:
+        raise DeploymentError(f"process {name!r} runs no mission: there is no run to watch here")
     backend = backend or BackendGiven()
     if backend.given and not role.backend:
         opener = next((n for n, p in role.checked.deployment.processes.items() if p.backend), None)  # type: ignore[union-attr]
@@ -411,7 +416,7 @@ def serve_process(
     with node, contextlib.ExitStack() as stack:  # what the process serves ends before its node leaves the graph
         if role.runs_mission:  # Ctrl-C (SIGINT) and SIGTERM end the run as in one process: summary written
             try:
-                return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready)
+                return _run_mission(role, node, out=out, seed=seed, until=until, ready=ready, observers=observers)
             except KeyboardInterrupt:
                 ready(f"{name}: interrupted before its run began")
                 return 130
@@ -664,7 +669,14 @@ def _following(host: SkillHost, clock: SimClock) -> Any:
 
 
 def _run_mission(
-    role: Role, node: Ros2Node, *, out: Path, seed: int | None, until: float | None, ready: Callable[[str], None]
+    role: Role,
+    node: Ros2Node,
+    *,
+    out: Path,
+    seed: int | None,
+    until: float | None,
+    ready: Callable[[str], None],
+    observers: Sequence[object] = (),
 ) -> int:
     registry = Registry.default()
     links: dict[str, SkillTickLink] = {}
@@ -692,7 +704,7 @@ def _run_mission(
         until=until,
         out=out,
         registry=registry,
-        observers=[ServeMissionInterfaces(node), ClockPublisher(node), lockstep, MissionLog(remote, ready)],
+        observers=[ServeMissionInterfaces(node), ClockPublisher(node), lockstep, MissionLog(remote, ready), *observers],
         backends=backends,
     )
     ready(f"{role.name}: {result.outcome} ({result.reason})")

@@ -346,6 +346,18 @@ class RunSession:
         self.final_blackboard = engine.blackboard.snapshot()
         self.counters = {key: jsonable(engine.blackboard.get(key, None)) for key in self.mission.counters}
 
+    def step_world(self) -> None:
+        """A tick's worth of the world without ticking the tree (an operator drives the robot while
+        the run is held): the clock moves on, the world steps, and the run's services update (the
+        localiser follows the robot)."""
+        self.clock.next_tick()
+        if self.backend is not None:
+            self.backend.step()
+        for service in self._opened:
+            update = getattr(service, "after_tick", None)
+            if callable(update):
+                update(self)
+
     def shut_down(self) -> None:
         """Skills cancelled (motors stop), services closed, the robot stopped and released, the
         trace closed: each step runs even if one before it failed."""

@@ -108,6 +108,11 @@ class SimLaser:
         self._last: LaserScan | None = None
         self._slot: int | None = None
 
+    @property
+    def latest(self) -> LaserScan | None:
+        """The last scan read, without turning the scanner again (what a viewer shows)."""
+        return self._last
+
     def scan(self) -> LaserScan:
         now = self.clock.now()
         # the world's own time decides when the scanner turned: a scan never shows a world that moved on

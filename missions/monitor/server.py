@@ -1,0 +1,238 @@
+"""The monitor's web application (FastAPI) and where it listens.
+
+Pages: ``/`` the monitor, ``/display`` the robot's tablet. JSON: ``/api/info``, ``/api/structure``,
+``/api/snapshot``, ``/api/events`` (server-sent events: a delta of what changed, at most every
+``PUSH_S``; ``?since=VERSION`` resumes after a snapshot; ``&stamps=1`` adds when each changed
+status changed, for the benchmark), ``/api/history?key=K``,
+``/api/display``, ``/api/map`` and ``/api/map.png`` (the occupancy grid), ``/api/camera.jpg``
+(while teleoperated), ``POST /api/control`` and ``POST /api/teleop`` (live runs); ``/api/range`` and ``/api/at?tick=N``
+(finished runs). Server-sent events rather than a WebSocket: one-way is all the views need, the
+browser reconnects by itself, and uvicorn serves them with no extra package.
+
+Security: 127.0.0.1 by default. Any other address needs a token (``BOTSTAGE_MONITOR_TOKEN``);
+with a token, every control action needs ``Authorization: Bearer <token>``, and viewing stays
+read-only and open.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import json
+import os
+from importlib import resources
+from typing import Any
+
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
+
+from missions.monitor.control import Control, ControlError
+from missions.monitor.hub import Hub
+from missions.monitor.replay import RecordedRun
+from missions.monitor.robot_view import map_info, map_png
+from missions.serving import ServerThread, app_config, bind, is_loopback, start_server
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8470
+TOKEN_ENV = "BOTSTAGE_MONITOR_TOKEN"
+PUSH_S = 0.05  # the pages hear of a change within this (p99 well under the 200 ms wanted)
+KEEPALIVE_S = 15.0
+READY_WAIT_S = 20.0  # how long /api/info and /api/structure wait for the run to be built
+_STATIC = resources.files("missions.monitor") / "static"
+
+
+class MonitorError(Exception):
+    """The monitor cannot listen as asked (an address beyond loopback without a token, a port in use)."""
+
+
+def _dumps(value: Any) -> str:
+    return json.dumps(value, default=str, ensure_ascii=False, separators=(",", ":"))
+
+
+def _static(name: str, media_type: str | None = None) -> FileResponse:
+    return FileResponse(str(_STATIC / name), media_type=media_type, headers={"Cache-Control": "no-cache"})
+
+
+def create_app(
+    hub: Hub, control: Control | None = None, *, token: str | None = None, run: RecordedRun | None = None
+) -> FastAPI:
+    """The application over one run's ``hub``: live with a ``control``, or a finished ``run``."""
+    app = FastAPI(title="botstage monitor", docs_url=None, redoc_url=None, openapi_url=None)
+    expected = f"Bearer {token}".encode() if token else None
+    drawn: dict[str, bytes] = {}  # the map's image, drawn once
+
+    @app.get("/", include_in_schema=False)
+    def monitor_page() -> FileResponse:
+        return _static("monitor.html", "text/html")
+
+    @app.get("/display", include_in_schema=False)
+    def display_page() -> FileResponse:
+        return _static("display.html", "text/html")
+
+    @app.get("/static/{name}", include_in_schema=False)
+    def static(name: str) -> FileResponse:
+        if name not in {entry.name for entry in _STATIC.iterdir()}:  # only the files we ship
+            raise HTTPException(404, f"no file {name!r}")
+        return _static(name)
+
+    async def started() -> None:
+        """Info and structure exist once the run is built: a page that came first waits a while."""
+        waited = 0.0
+        while not hub.ready.is_set():
+            if waited >= READY_WAIT_S:
+                raise HTTPException(503, "the run has not started yet", headers={"Retry-After": "1"})
+            await asyncio.sleep(PUSH_S)
+            waited += PUSH_S
+
+    @app.get("/api/info")
+    async def info() -> dict[str, Any]:
+        await started()
+        return {
+            **hub.info,
+            "token_required": expected is not None,
+            "control": control is not None,
+            "map": hub.grid is not None,
+        }
+
+    @app.get("/api/structure")
+    async def structure() -> Response:
+        await started()
+        return Response(_dumps(hub.structure), media_type="application/json")
+
+    @app.get("/api/snapshot")
+    def snapshot() -> Response:
+        return Response(_dumps(hub.snapshot()), media_type="application/json")
+
+    @app.get("/api/history")
+    def history(key: str) -> list[dict[str, Any]]:
+        writes = hub.key_history(key)
+        if writes is None:
+            raise HTTPException(404, f"no key {key!r} was written")
+        return writes
+
+    @app.get("/api/display")
+    def display() -> dict[str, Any]:
+        return hub.current_layout()
+
+    @app.get("/api/events")
+    async def events(request: Request, since: int | None = None, stamps: bool = False) -> StreamingResponse:
+        start = hub.version if since is None else since
+
+        async def stream() -> Any:
+            seen, quiet = start, 0.0
+            while not await request.is_disconnected():
+                if hub.version > seen:
+                    delta = hub.delta(seen, stamps)
+                    seen = delta["version"]
+                    quiet = 0.0
+                    yield f"data: {_dumps(delta)}\n\n"
+                elif hub.flags.ended:  # all said: the stream ends cleanly before the server goes
+                    return
+                elif quiet >= KEEPALIVE_S:
+                    quiet = 0.0
+                    yield ": still here\n\n"
+                await asyncio.sleep(PUSH_S)
+                quiet += PUSH_S
+
+        headers = {"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
+        return StreamingResponse(stream(), media_type="text/event-stream", headers=headers)
+
+    async def controlled(request: Request) -> tuple[Control, dict[str, Any]]:
+        """The control and the request's JSON object, once the token and the run allow it."""
+        if control is None:
+            raise HTTPException(409, "this is a finished run: there is nothing to control")
+        given = request.headers.get("authorization", "").encode()
+        if expected is not None and not hmac.compare_digest(given, expected):
+            raise HTTPException(401, "control needs the monitor's token", headers={"WWW-Authenticate": "Bearer"})
+        await started()  # what a request may name is known once the run is built
+        try:
+            body = await request.json()
+        except ValueError:
+            raise HTTPException(400, "the body is not JSON") from None
+        if not isinstance(body, dict):
+            raise HTTPException(400, "the body must be a JSON object")
+        return control, body
+
+    @app.post("/api/control")
+    async def control_action(request: Request) -> JSONResponse:
+        control, body = await controlled(request)
+        try:
+            message = control.request(body)
+        except ControlError as exc:
+            raise HTTPException(422, str(exc)) from None
+        return JSONResponse({"ok": True, "message": message})
+
+    @app.post("/api/teleop")
+    async def teleop(request: Request) -> JSONResponse:
+        control, body = await controlled(request)
+        try:
+            message = control.teleop(body.get("v"), body.get("w"))
+        except ControlError as exc:
+            raise HTTPException(409, str(exc)) from None
+        return JSONResponse({"ok": True, "message": message})
+
+    @app.get("/api/map")
+    def map_meta() -> dict[str, Any]:
+        if hub.grid is None:
+            raise HTTPException(404, "this run has no map")
+        return map_info(hub.grid)
+
+    @app.get("/api/map.png")
+    def map_image() -> Response:
+        if hub.grid is None:
+            raise HTTPException(404, "this run has no map")
+        if "map.png" not in drawn:
+            drawn["map.png"] = map_png(hub.grid)
+        return Response(drawn["map.png"], media_type="image/png", headers={"Cache-Control": "max-age=3600"})
+
+    @app.get("/api/camera.jpg")
+    def camera() -> Response:
+        jpeg, number = hub.camera
+        if not number:
+            raise HTTPException(404, "no camera frame (frames come while the robot is teleoperated)")
+        return Response(jpeg, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
+
+    if run is not None:
+
+        @app.get("/api/range")
+        def tick_range() -> dict[str, int]:
+            return {"first": run.first, "last": run.last}
+
+        @app.get("/api/at")
+        def at(tick: int) -> Response:
+            if not run.first <= tick <= run.last:
+                raise HTTPException(422, f"tick {tick} is outside the run ({run.first}..{run.last})")
+            return Response(_dumps(run.at(tick)), media_type="application/json")
+
+    return app
+
+
+def token_for(host: str, token: str | None = None) -> str | None:
+    """The token the monitor needs: given, or from the environment; required beyond loopback."""
+    token = token or os.environ.get(TOKEN_ENV) or None
+    if not is_loopback(host) and token is None:
+        raise MonitorError(
+            f"the monitor listens on {host}, beyond this machine: set {TOKEN_ENV} to a secret that "
+            "control actions must carry (viewing stays read-only)"
+        )
+    return token
+
+
+def start_monitor(
+    hub: Hub,
+    control: Control | None = None,
+    *,
+    host: str = DEFAULT_HOST,
+    port: int = DEFAULT_PORT,
+    token: str | None = None,
+    run: RecordedRun | None = None,
+) -> ServerThread:
+    """Serve the monitor on a thread (port 0: a free one); returns once it accepts connections."""
+    token = token_for(host, token)
+    try:
+        sock = bind(host, port)
+    except OSError as exc:
+        raise MonitorError(f"the monitor cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    port = sock.getsockname()[1]
+    config = app_config(create_app(hub, control, token=token, run=run), host, port)
+    return start_server(config, sock, "monitor")

@@ -1,0 +1,64 @@
+"""The README's screenshots of the monitor, made from real runs in headless Chromium:
+``python -m tests.monitor_screenshots`` writes missions/monitor/screenshots/*.png."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+from playwright.sync_api import sync_playwright
+
+from missions.monitor.replay import load_run
+from missions.monitor.server import start_monitor
+from tests.monitor_harness import LISTENING, ROOT, live_run
+
+OUT = ROOT / "missions" / "monitor" / "screenshots"
+SIZE = {"width": 1400, "height": 900}
+
+
+def main() -> None:
+    OUT.mkdir(parents=True, exist_ok=True)
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        sys.exit("chromium is not installed (apt-get install chromium)")
+    with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
+        page = browser.new_page(viewport=SIZE)
+        folder = Path(tmp) / "run"
+        with live_run(folder, until=120) as live:
+            live.act(action="break", kind="state", target=LISTENING)
+            live.act(action="resume")
+            live.until(lambda s: s["paused"] and "breakpoint" in s["pause_reason"], "the breakpoint", 120)
+            page.goto(live.url + "/")
+            page.wait_for_function("() => window.monitor && window.monitor.ready")
+            page.wait_for_selector("#map[data-pose]")
+            page.wait_for_timeout(500)  # let the map draw its frame
+            page.screenshot(path=str(OUT / "monitor.png"))
+            page.goto(live.url + "/display")
+            page.wait_for_function("() => document.querySelector('#layout').dataset.layout")
+            page.screenshot(path=str(OUT / "display.png"))
+            page.goto("about:blank")
+            live.act(action="unbreak", id=1)
+            live.act(action="resume")
+            live.finish()
+        run = load_run(folder)
+        server = start_monitor(run.hub, port=0, run=run)
+        try:
+            page.goto(server.url + "/")
+            page.wait_for_function("() => window.monitor && window.monitor.ready")
+            page.fill("#tick", "560")
+            page.press("#tick", "Enter")
+            page.wait_for_timeout(500)
+            page.screenshot(path=str(OUT / "replay.png"))
+            page.goto("about:blank")
+        finally:
+            server.stop()
+        browser.close()
+    for shot in sorted(OUT.glob("*.png")):
+        print(shot.relative_to(ROOT), shot.stat().st_size, "bytes")
+
+
+if __name__ == "__main__":
+    main()
