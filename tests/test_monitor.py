@@ -177,6 +177,14 @@ def test_a_finished_run_at_tick_n_is_what_botstage_tree_prints(tmp_path) -> None
         assert http.get("/api/info").json()["mode"] == "replay"
         assert http.post("/api/control", json={"action": "pause"}).status_code == 409
         assert http.get("/api/at", params={"tick": span["last"] + 1}).status_code == 422
+        snapshot = http.get("/api/snapshot").json()
+        assert {"robot", "visitor"} <= {line["who"] for line in snapshot["said"]}
+        taken = [photo["file"] for photo in snapshot["photos"]]
+        assert taken and taken[0].startswith("photos/")
+        image = http.get("/api/photo", params={"file": taken[0]})
+        assert image.status_code == 200 and image.content[:2] == b"\xff\xd8"
+        for outside in ("summary.json", "../../etc/passwd", "photos/none.jpg"):
+            assert http.get("/api/photo", params={"file": outside}).status_code == 404
         for tick in (0, 141, 340, span["last"]):
             at = http.get("/api/at", params={"tick": tick}).json()
             printed = CliRunner().invoke(

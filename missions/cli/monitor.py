@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,7 +20,7 @@ def live_monitor(host: str, port: int, paused: bool) -> Iterator[object]:
     from missions.monitor.control import Control
     from missions.monitor.hub import Hub
     from missions.monitor.observer import MonitorObserver
-    from missions.monitor.server import MonitorError, start_monitor
+    from missions.monitor.server import PUSH_S, MonitorError, start_monitor
 
     hub = Hub()
     control = Control(hub, simulated=True)
@@ -34,6 +35,7 @@ def live_monitor(host: str, port: int, paused: bool) -> Iterator[object]:
         yield MonitorObserver(hub, control)
     finally:
         control.close()
+        time.sleep(3 * PUSH_S)  # the pages hear that the run ended before the server goes
         running.stop()
 
 

@@ -17,10 +17,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from missions.transcript import ROLES
+
 OPERATOR = "monitor"  # the node name the operator's actions carry in the trace
 TIMELINE = 5_000  # entries a page can scroll back through
 HISTORY = 200  # writes kept per key
 SHOWN = 500  # layouts kept for the /display page
+SAID = 500  # lines of the transcript kept
+PHOTOS = 200  # photos kept on the page (the run folder has them all)
 _TIMELINE_EVENTS = frozenset({"transition", "skill_start", "skill_outcome", "skill_cancel", "error", "log"})
 
 
@@ -95,6 +99,9 @@ class Hub:
     camera: tuple[bytes, int] = (b"", 0)  # the latest camera frame (JPEG) while teleoperated, its number
     shown_count: int = 0
     grid: Any = None  # the run's map (a GridMap), for the map view
+    folder: Any = None  # the run folder (a Path): the photos the page shows are in it
+    said: deque[tuple[int, dict[str, Any]]] = field(default_factory=lambda: deque(maxlen=SAID))
+    photos: deque[tuple[int, dict[str, Any]]] = field(default_factory=lambda: deque(maxlen=PHOTOS))
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     # set once info and structure are known (the run is built): pages asking earlier wait for it
     ready: threading.Event = field(default_factory=threading.Event, repr=False)
@@ -118,6 +125,8 @@ class Hub:
                 self.states[record["machine"]] = (f"{record['machine']}/{record['dest']}", version)
             elif ev == "bb_write":
                 self._write(record, version)
+            elif ev == "skill_outcome" and record["outputs"]:
+                self._outputs(record, version)
             if ev in _TIMELINE_EVENTS:
                 self._note(record, version)
 
@@ -132,6 +141,17 @@ class Hub:
             writes = self.history[key] = deque(maxlen=HISTORY)
         writes.append({"tick": record["tick"], "t": record["t"], "value": value, "writer": record["writer"]})
 
+    def _outputs(self, record: Mapping[str, Any], version: int) -> None:
+        """Who said what (as the run's transcript takes it), and the photos taken."""
+        outputs = record["outputs"]
+        for port, who in ROLES.items():
+            text = outputs.get(port)
+            if isinstance(text, str) and text.strip():
+                self.said.append((version, {"tick": record["tick"], "t": record["t"], "who": who, "text": text}))
+        photo = outputs.get("photo") if record["skill"] == "photo" else None
+        if isinstance(photo, str) and photo:
+            self.photos.append((version, {"tick": record["tick"], "t": record["t"], "file": photo}))
+
     def _note(self, record: Mapping[str, Any], version: int) -> None:
         ev = record["ev"]
         if ev == "log" and record["node"] == OPERATOR:  # the operator's actions, as the trace has them
@@ -139,7 +159,7 @@ class Hub:
         entry: dict[str, Any] = {
             "tick": record["tick"],
             "t": record["t"],
-            "ev": record["ev"],
+            "ev": ev,
             "text": entry_text(record),
         }
         if "node" in record:
@@ -209,6 +229,8 @@ class Hub:
                 "blackboard": {key: info for key, (info, v) in self.blackboard.items() if v > since},
                 "timeline": [entry for v, entry in self.timeline if v > since],
                 "display": [entry for v, entry in self.display if v > since],
+                "said": [entry for v, entry in self.said if v > since],
+                "photos": [entry for v, entry in self.photos if v > since],
                 "breakpoints": list(self.breakpoints),
                 **({"robot": self.robot[0]} if self.robot[1] > since or since == 0 else {}),
             }

@@ -71,6 +71,7 @@ class MonitorObserver:
         self.control.started(session)
         self.control.on_change = self._held
         self.hub.grid = session.backend.grid if session.backend is not None else None
+        self.hub.folder = session.folder
         self._sample(session)
         trace = session.trace
         self.control.attach(lambda message: trace.emit("log", NODE, "info", message))

@@ -91,6 +91,7 @@ def load_run(folder: Path) -> RecordedRun:
         "rate_hz": checked.mission.rate_hz if checked.mission else None,
     }
     hub.structure = to_plain(item)
+    hub.folder = folder
     try:
         for event in events:
             hub.apply(event)

@@ -1,13 +1,14 @@
 """The monitor's web application (FastAPI) and where it listens.
 
-Pages: ``/`` the monitor, ``/display`` the robot's tablet. JSON: ``/api/info``, ``/api/structure``,
-``/api/snapshot``, ``/api/events`` (server-sent events: a delta of what changed, at most every
-``PUSH_S``; ``?since=VERSION`` resumes after a snapshot; ``&stamps=1`` adds when each changed
-status changed, for the benchmark), ``/api/history?key=K``,
-``/api/display``, ``/api/map`` and ``/api/map.png`` (the occupancy grid), ``/api/camera.jpg``
-(while teleoperated), ``POST /api/control`` and ``POST /api/teleop`` (live runs); ``/api/range`` and ``/api/at?tick=N``
-(finished runs). Server-sent events rather than a WebSocket: one-way is all the views need, the
-browser reconnects by itself, and uvicorn serves them with no extra package.
+Pages: ``/`` the monitor, ``/display`` the robot's tablet. JSON: ``/api/info``,
+``/api/structure``, ``/api/snapshot``, ``/api/events`` (server-sent events: a delta of what
+changed, at most every ``PUSH_S``; ``?since=VERSION`` resumes after a snapshot; ``&stamps=1``
+adds when each changed status changed, for the benchmark), ``/api/history?key=K``,
+``/api/display``, ``/api/photo?file=photos/…`` (a photo the run took), ``/api/map`` and
+``/api/map.png`` (the occupancy grid), ``/api/camera.jpg`` (while teleoperated),
+``POST /api/control`` and ``POST /api/teleop`` (live runs); ``/api/range`` and
+``/api/at?tick=N`` (finished runs). Server-sent events rather than a WebSocket: one-way is all
+the views need, the browser reconnects by itself, and uvicorn serves them with no extra package.
 
 Security: 127.0.0.1 by default. Any other address needs a token (``BOTSTAGE_MONITOR_TOKEN``);
 with a token, every control action needs ``Authorization: Bearer <token>``, and viewing stays
@@ -184,6 +185,17 @@ def create_app(
         if "map.png" not in drawn:
             drawn["map.png"] = map_png(hub.grid)
         return Response(drawn["map.png"], media_type="image/png", headers={"Cache-Control": "max-age=3600"})
+
+    @app.get("/api/photo")
+    def photo(file: str) -> FileResponse:
+        """A photo the run took (``file`` as the photo skill gave it, relative to the run folder)."""
+        folder = hub.folder
+        if folder is None or not any(entry["file"] == file for entry in hub.snapshot()["photos"]):
+            raise HTTPException(404, f"the run took no photo {file!r}")
+        path = (folder / file).resolve()
+        if folder.resolve() not in path.parents or not path.is_file():
+            raise HTTPException(404, f"no photo {file!r} in the run folder")
+        return FileResponse(str(path), headers={"Cache-Control": "max-age=3600"})
 
     @app.get("/api/camera.jpg")
     def camera() -> Response:

@@ -11,12 +11,20 @@
 //
 // window.monitor = {version, applied} is published after each flush so tests can wait for it;
 // with it `robot` (the last robot object) and `teleop` ({v, w} last sent to /api/teleop).
+//
+// The right column's lower panel (#panel-feed) has three tabs: photos & transcript
+// (#panel-people: #photos, #transcript), logs (#panel-logs) and the layouts shown
+// (#panel-display); a tab not shown counts what arrived meanwhile. A thumbnail opens the photo
+// large in #photo-overlay. Photos are only ever requested by the names the server listed.
 
 "use strict";
 
 (() => {
   const MAX_ENTRIES = 2000;        // timeline and log rows kept in the DOM
   const MAX_DISPLAY = 2000;        // display-list rows kept in the DOM
+  const MAX_SAID = 500;            // transcript lines kept in the DOM (as many as the hub keeps)
+  const MAX_PHOTOS = 200;          // photo thumbnails kept in the DOM (as many as the hub keeps)
+  const TAB_KEY = "botstage.monitor.tab";
   const TOKEN_KEY = "botstage.monitor.token";
   const VALUE_CHARS = 120;         // blackboard values longer than this are cut (full in title)
   const RETRY_MS = 3000;
@@ -140,11 +148,15 @@
     breakpoints: false,
     entriesReset: false,     // timeline + logs replaced by pendingEntries
     displayReset: false,
+    saidReset: false,        // transcript replaced by pendingSaid
+    photosReset: false,      // photos replaced by pendingPhotos
     robot: false,            // the map, data-pose and the teleop panel
     teleop: false,           // the teleop panel only (a key or button held or let go)
   };
   let pendingEntries = [];
   let pendingDisplay = [];
+  let pendingSaid = [];
+  let pendingPhotos = [];
 
   // ---- DOM indexes -------------------------------------------------------------------------
 
@@ -657,6 +669,10 @@
       if (e.ev === "log") logFrag.appendChild(logRow(e));
     }
     tl.appendChild(tlFrag);
+    if (!reset && logFrag.childElementCount) {
+      const alarm = !!logFrag.querySelector(".level-warning, .level-warn, .level-error, .level-critical");
+      noteUnread("logs", logFrag.childElementCount, alarm);
+    }
     logs.appendChild(logFrag);
     trim(tl, MAX_ENTRIES);
     trim(logs, MAX_ENTRIES);
@@ -671,6 +687,7 @@
     if (reset) box.textContent = "";
     const frag = document.createDocumentFragment();
     for (const d of items) if (d && typeof d === "object") frag.appendChild(displayRow(d));
+    if (!reset) noteUnread("display", frag.childElementCount, false);
     box.appendChild(frag);
     trim(box, MAX_DISPLAY);
     if (stick) box.scrollTop = box.scrollHeight;
@@ -704,6 +721,293 @@
         box.scrollTop = top - box.clientHeight / 2;
       }
     }
+  }
+
+  // ---- transcript ------------------------------------------------------------------------------
+
+  // One line said: the robot's on the left, a visitor's on the right (CSS, by data-who); the
+  // speaker's name only above the first of consecutive lines by the same speaker.
+  function sayRow(s) {
+    const who = String(s.who || "robot");
+    const row = el("div", "say");
+    row.dataset.who = who;
+    row.dataset.tick = s.tick;
+    row.title = `${who} · tick ${s.tick} · t ${fmtT(s.t)} s`;
+    row.appendChild(el("span", "say-who", who));
+    row.appendChild(el("span", "bubble", s.text ?? ""));
+    row.appendChild(el("span", "say-t", fmtT(s.t)));
+    return row;
+  }
+
+  function renderSaid(items, reset) {
+    const box = $("#transcript");
+    const stick = reset || box._follow !== false;
+    if (reset) box.textContent = "";
+    let last = box.lastElementChild ? box.lastElementChild.dataset.who : null;
+    const frag = document.createDocumentFragment();
+    for (const s of items) {
+      if (!s || typeof s !== "object") continue;
+      const row = sayRow(s);
+      if (row.dataset.who === last) row.classList.add("cont");
+      last = row.dataset.who;
+      frag.appendChild(row);
+    }
+    if (!reset) noteUnread("people", frag.childElementCount, false);
+    box.appendChild(frag);
+    trim(box, MAX_SAID);
+    if (box.firstElementChild) box.firstElementChild.classList.remove("cont"); // its speaker went
+    if (stick) box.scrollTop = box.scrollHeight;
+    laterTick = null; // replay: mark the rows again
+  }
+
+  function onTranscriptClick(ev) {
+    const row = ev.target.closest(".say");
+    if (row && model.replay) requestAt(Number(row.dataset.tick));
+  }
+
+  // ---- photos -----------------------------------------------------------------------------------
+
+  function photoURL(file) {
+    return "/api/photo?file=" + encodeURIComponent(file);
+  }
+
+  function photoThumb(p) {
+    const btn = el("button", "thumb");
+    btn.type = "button";
+    btn.dataset.tick = p.tick;
+    btn.title = `${lastSegment(p.file)} · tick ${p.tick} · t ${fmtT(p.t)} s (click: larger)`;
+    btn._photo = p;
+    const img = el("img");
+    img.loading = "lazy";
+    img.decoding = "async";
+    img.width = 112;
+    img.height = 84;
+    img.alt = `photo at t ${fmtT(p.t)} s`;
+    img.dataset.file = p.file;
+    img.onerror = () => { btn.hidden = true; }; // gone from the server: no broken image
+    img.src = photoURL(p.file);
+    btn.appendChild(img);
+    btn.appendChild(el("span", "thumb-t", fmtT(p.t) + " s"));
+    return btn;
+  }
+
+  function atRight(box) {
+    return box.scrollWidth - box.scrollLeft - box.clientWidth < 24;
+  }
+
+  // Oldest on the left, newest on the right; a reset keeps the thumbnails it already has (no
+  // image is fetched twice).
+  function renderPhotos(items, reset) {
+    const box = $("#photos");
+    const stick = reset || box._follow !== false;
+    const had = new Map();
+    if (reset) {
+      for (const b of box.children) if (b._photo) had.set(b._photo.file, b);
+      box.textContent = "";
+    }
+    const frag = document.createDocumentFragment();
+    for (const p of items) {
+      if (!p || typeof p !== "object" || typeof p.file !== "string" || !p.file) continue;
+      const old = had.get(p.file);
+      if (old && old._photo.tick === p.tick) {
+        had.delete(p.file);
+        frag.appendChild(old);
+      } else {
+        frag.appendChild(photoThumb(p));
+      }
+    }
+    if (!reset) noteUnread("people", frag.childElementCount, false);
+    box.appendChild(frag);
+    trim(box, MAX_PHOTOS);
+    if (stick) box.scrollLeft = box.scrollWidth;
+    laterTick = null;
+  }
+
+  // The photo shown large (its thumbnail's data), or null.
+  let largePhoto = null;
+  let largeFrom = null; // what had the focus before
+
+  function visibleThumbs() {
+    return [...$("#photos").children].filter((b) => b._photo && !b.hidden);
+  }
+
+  function showPhoto(p) {
+    largePhoto = p;
+    const img = $("#photo-large");
+    img.alt = `photo taken at t ${fmtT(p.t)} s`;
+    img.src = photoURL(p.file);
+    $("#photo-caption").textContent = `${lastSegment(p.file)} · tick ${p.tick} · t ${fmtT(p.t)} s`;
+    const thumbs = visibleThumbs();
+    const i = thumbs.findIndex((b) => b._photo.file === p.file);
+    $("#photo-prev").disabled = i <= 0;
+    $("#photo-next").disabled = i < 0 || i >= thumbs.length - 1;
+  }
+
+  function openPhoto(btn) {
+    if (!btn || !btn._photo) return;
+    largeFrom = document.activeElement;
+    showPhoto(btn._photo);
+    $("#photo-overlay").hidden = false;
+    $("#photo-close").focus({ preventScroll: true });
+  }
+
+  function closePhoto() {
+    const overlay = $("#photo-overlay");
+    if (overlay.hidden) return;
+    overlay.hidden = true;
+    $("#photo-large").removeAttribute("src");
+    largePhoto = null;
+    if (largeFrom && largeFrom.isConnected && largeFrom.focus) largeFrom.focus({ preventScroll: true });
+    largeFrom = null;
+  }
+
+  function stepPhoto(by) {
+    if (!largePhoto) return;
+    const thumbs = visibleThumbs();
+    const i = thumbs.findIndex((b) => b._photo.file === largePhoto.file);
+    const next = i >= 0 ? thumbs[i + by] : null;
+    if (next) {
+      showPhoto(next._photo);
+      next.scrollIntoView({ block: "nearest", inline: "nearest" });
+    }
+  }
+
+  // While the photo is up, the keys are its own: Escape closes, ← → step; no arrow reaches the
+  // scrubber or the teleop (keydown only: a key let go always reaches the teleop).
+  function onOverlayKey(ev) {
+    if ($("#photo-overlay").hidden) return;
+    const keys = { Escape: 0, ArrowLeft: -1, ArrowRight: 1, ArrowUp: 0, ArrowDown: 0 };
+    if (!(ev.key in keys)) return;
+    ev.preventDefault();
+    ev.stopPropagation();
+    if (ev.key === "Escape") closePhoto();
+    else if (keys[ev.key]) stepPhoto(keys[ev.key]);
+  }
+
+  function wirePhotos() {
+    $("#photos").addEventListener("click", (ev) => openPhoto(ev.target.closest(".thumb")));
+    $("#transcript").addEventListener("click", onTranscriptClick);
+    const overlay = $("#photo-overlay");
+    overlay.addEventListener("click", (ev) => {
+      if (ev.target.closest("#photo-prev")) stepPhoto(-1);
+      else if (ev.target.closest("#photo-next")) stepPhoto(1);
+      else closePhoto(); // anywhere else, the photo too
+    });
+    $("#photo-large").addEventListener("error", () => {
+      if (largePhoto) $("#photo-caption").textContent = `${lastSegment(largePhoto.file)}: cannot load it`;
+    });
+    window.addEventListener("keydown", onOverlayKey, true);
+  }
+
+  // Replay: what was said and taken after the scrubbed tick is dimmed, and the transcript keeps
+  // its last line at or before the tick in view.
+  let laterTick = null;
+  function markLater(tick) {
+    if (tick === laterTick) return;
+    laterTick = tick;
+    let cursor = null;
+    for (const row of $("#transcript").children) {
+      const later = Number(row.dataset.tick) > tick;
+      row.classList.toggle("later", later);
+      if (!later) cursor = row;
+    }
+    const strip = $("#photos");
+    let taken = null;
+    for (const b of strip.children) {
+      const later = Number(b.dataset.tick) > tick;
+      b.classList.toggle("later", later);
+      if (!later && !b.hidden) taken = b;
+    }
+    if (taken && strip.clientWidth) {
+      const left = taken.offsetLeft; // the strip is positioned: offsets are its own
+      if (left < strip.scrollLeft || left + taken.offsetWidth > strip.scrollLeft + strip.clientWidth) {
+        strip.scrollLeft = left - strip.clientWidth + taken.offsetWidth + 8;
+      }
+    }
+    const box = $("#transcript");
+    if (cursor && box.clientHeight) {
+      const top = cursor.offsetTop;
+      if (top < box.scrollTop || top + cursor.offsetHeight > box.scrollTop + box.clientHeight) {
+        box.scrollTop = top - box.clientHeight + cursor.offsetHeight + 8;
+      }
+    }
+  }
+
+  // ---- tabs: photos & transcript, logs, display ---------------------------------------------
+
+  const TABS = ["people", "logs", "display"];
+  let activeTab = "people";
+  const unread = { people: 0, logs: 0, display: 0 };
+
+  // The scrolling lists of a tab's pane, and whether each follows its end (vertical or not).
+  function paneLists(name) {
+    return [...$("#panel-" + name).querySelectorAll(".panel-body, .photo-strip")];
+  }
+
+  function selectTab(name) {
+    if (!TABS.includes(name)) name = "people";
+    activeTab = name;
+    for (const tab of TABS) {
+      const on = tab === name;
+      $("#tab-" + tab).setAttribute("aria-selected", on ? "true" : "false");
+      $("#tab-" + tab).tabIndex = on ? 0 : -1;
+      $("#panel-" + tab).hidden = !on;
+    }
+    for (const box of paneLists(name)) restoreScroll(box);
+    unread[name] = 0;
+    paintUnread(name, false);
+    if (name === "people" && model.replay) { laterTick = null; markLater(model.tick); }
+    try { localStorage.setItem(TAB_KEY, name); } catch (e) { /* storage off */ }
+  }
+
+  // New rows in a tab not shown: counted on it (red when a log warns or fails).
+  function noteUnread(name, count, alarm) {
+    if (!count || name === activeTab) return;
+    unread[name] += count;
+    paintUnread(name, alarm);
+  }
+
+  function paintUnread(name, alarm) {
+    const badge = $("#tab-" + name + " .tab-count");
+    const n = unread[name];
+    badge.textContent = n ? (n > 99 ? "99+" : String(n)) : "";
+    if (!n) badge.classList.remove("alarm");
+    else if (alarm) badge.classList.add("alarm");
+  }
+
+  // A list follows its end (the newest rows) until the reader scrolls away from it, and goes back
+  // to following once scrolled to the end again. Kept in box._follow from the reader's scrolling
+  // (a hidden box fires no scroll event and forgets its position: box._scroll brings it back), so
+  // a list whose box shrinks (the photo strip appearing above the transcript) keeps following.
+  function isStrip(box) {
+    return box.classList.contains("photo-strip");
+  }
+
+  function trackScroll(box) {
+    box.addEventListener("scroll", () => {
+      if (!box.clientHeight) return; // hidden
+      box._follow = isStrip(box) ? atRight(box) : atBottom(box);
+      box._scroll = isStrip(box) ? box.scrollLeft : box.scrollTop;
+    }, { passive: true });
+    // shown again, or resized: keep the end in view when following
+    new ResizeObserver(() => { if (box.clientHeight) restoreScroll(box); }).observe(box);
+  }
+
+  function restoreScroll(box) {
+    const strip = isStrip(box);
+    if (box._follow === false) {
+      if (strip) box.scrollLeft = box._scroll || 0;
+      else box.scrollTop = box._scroll || 0;
+    } else if (strip) box.scrollLeft = box.scrollWidth;
+    else box.scrollTop = box.scrollHeight;
+  }
+
+  function wireTabs() {
+    for (const tab of TABS) for (const box of paneLists(tab)) trackScroll(box);
+    for (const tab of TABS) $("#tab-" + tab).addEventListener("click", () => selectTab(tab));
+    let saved = null;
+    try { saved = localStorage.getItem(TAB_KEY); } catch (e) { /* storage off */ }
+    selectTab(saved || "people");
   }
 
   // ---- breakpoints list ---------------------------------------------------------------------
@@ -799,6 +1103,10 @@
     dirty.entriesReset = true;
     pendingDisplay = Array.isArray(s.display) ? s.display.slice(-MAX_DISPLAY) : [];
     dirty.displayReset = true;
+    pendingSaid = Array.isArray(s.said) ? s.said.slice(-MAX_SAID) : [];
+    dirty.saidReset = true;
+    pendingPhotos = Array.isArray(s.photos) ? s.photos.slice(-MAX_PHOTOS) : [];
+    dirty.photosReset = true;
     setRobot(s.robot);
     schedule();
   }
@@ -839,6 +1147,14 @@
     if (Array.isArray(d.display) && d.display.length) {
       pendingDisplay.push(...d.display);
       if (pendingDisplay.length > MAX_DISPLAY) pendingDisplay = pendingDisplay.slice(-MAX_DISPLAY);
+    }
+    if (Array.isArray(d.said) && d.said.length) {
+      pendingSaid.push(...d.said);
+      if (pendingSaid.length > MAX_SAID) pendingSaid = pendingSaid.slice(-MAX_SAID);
+    }
+    if (Array.isArray(d.photos) && d.photos.length) {
+      pendingPhotos.push(...d.photos);
+      if (pendingPhotos.length > MAX_PHOTOS) pendingPhotos = pendingPhotos.slice(-MAX_PHOTOS);
     }
     if (Array.isArray(d.breakpoints)) {
       model.breakpoints = d.breakpoints;
@@ -918,10 +1234,23 @@
       pendingDisplay = [];
       dirty.displayReset = false;
     }
+    if (dirty.saidReset || pendingSaid.length) {
+      renderSaid(pendingSaid, dirty.saidReset);
+      pendingSaid = [];
+      dirty.saidReset = false;
+    }
+    if (dirty.photosReset || pendingPhotos.length) {
+      renderPhotos(pendingPhotos, dirty.photosReset);
+      pendingPhotos = [];
+      dirty.photosReset = false;
+    }
     if (dirty.breakpoints) renderBreakpoints();
     dirty.breakpoints = false;
 
-    if (model.replay) markTimelineCursor(model.tick);
+    if (model.replay) {
+      markTimelineCursor(model.tick);
+      if (activeTab === "people") markLater(model.tick);
+    }
 
     if (dirty.robot) renderRobot();
     if (dirty.robot || dirty.teleop || statusChanged) renderTeleop();
@@ -1859,6 +2188,8 @@
     wireReplay();
     wireMap();
     wireTeleop();
+    wirePhotos();
+    wireTabs();
     renderBreakpoints();
 
     let info;
