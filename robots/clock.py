@@ -111,6 +111,7 @@ class WallClock:
         self._sleep = sleep
         self._origin = monotonic()
         self._deadline = self._origin + self._period
+        self._held_at: float | None = None
         self.ticks = 0  # only next_tick() changes it
         self.overruns = Overruns()
 
@@ -119,7 +120,21 @@ class WallClock:
         return self._period
 
     def now(self) -> float:
-        return self._monotonic() - self._origin
+        at = self._held_at if self._held_at is not None else self._monotonic()
+        return at - self._origin
+
+    def hold(self) -> None:
+        """Stop mission time (an operator paused a simulation paced in real time): what is held
+        does not count, and the schedule goes on from the release as if no time had passed."""
+        if self._held_at is None:
+            self._held_at = self._monotonic()
+
+    def release(self) -> None:
+        if self._held_at is not None:
+            held = self._monotonic() - self._held_at
+            self._origin += held
+            self._deadline += held
+            self._held_at = None
 
     def next_tick(self) -> None:
         self.ticks += 1

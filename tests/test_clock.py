@@ -83,3 +83,22 @@ def test_wall_clock_reports_overruns_and_does_not_burst() -> None:
     clock.next_tick()
     assert fake.slept[-1] == pytest.approx(0.09)
     assert clock.overruns.count == 1
+
+
+def test_a_held_wall_clock_does_not_count_the_hold_as_mission_time() -> None:
+    """A simulation paced in real time, paused from the monitor: held time is not mission time,
+    and the tick after the release is neither late nor a catch-up burst."""
+    fake = FakeTime()
+    clock = WallClock(10, monotonic=fake.monotonic, sleep=fake.sleep)
+    fake.t += 0.02
+    clock.hold()
+    fake.t += 5.0  # five seconds paused
+    assert clock.now() == pytest.approx(0.02)
+    clock.hold()  # holding twice is one hold
+    clock.release()
+    assert clock.now() == pytest.approx(0.02)
+    clock.next_tick()
+    assert fake.slept[-1] == pytest.approx(0.08) and clock.overruns.count == 0
+    assert clock.now() == pytest.approx(0.1)
+    clock.release()  # releasing a clock not held changes nothing
+    assert clock.now() == pytest.approx(0.1)

@@ -7,8 +7,9 @@ engine is safe, and holds the run there while it is paused. Every action goes in
 log line of node ``monitor``; forced outcomes are ordinary ``skill_outcome`` events and written
 keys ``bb_write`` events of writer ``monitor``, so a run steered by hand replays as a scenario.
 
-Pausing holds the simulation clock (nothing moves in the simulated world while paused), so it needs
-a simulated run; a real robot's world does not pause: there, the e-stop is the way to stop it.
+Pausing holds the simulation's clock (nothing moves in the simulated world while paused; a
+simulation paced in real time has its wall clock held too), so it needs a simulated world; a real
+robot's world does not pause: there, the e-stop is the way to stop it.
 """
 
 from __future__ import annotations
@@ -272,8 +273,10 @@ class Control:
         if self._hit:
             self._hold(self._hit)
             self._hit = ""
-        if self.paused or self.estopped:
+        held = self.paused or self.estopped
+        if held:
             self.on_change(session)
+            _hold(session.clock)  # a simulation paced in real time: held time is not mission time
         while (self.paused or self.estopped) and not self.closed:
             if self._steps > 0 and not self.estopped:
                 self._steps -= 1
@@ -286,6 +289,8 @@ class Control:
             if self._run_queued(session):
                 self.on_change(session)
         self._end_teleop(session)
+        if held:
+            _release(session.clock)
 
     def event(self, record: Mapping[str, Any]) -> None:
         """A breakpoint on a state, a node or a transition holds the run after this tick."""
@@ -341,7 +346,9 @@ class Control:
         if not self.teleop_state["active"]:
             self._trace_note("teleop from the monitor")
         drive.cmd_vel(v, w)
+        _release(session.clock)  # the world driven by hand moves in mission time
         session.step_world()
+        _hold(session.clock)
         self.teleop_state = {"active": True, "v": v, "w": w}
         self.on_change(session)
         if v == 0.0 and w == 0.0:
@@ -461,6 +468,18 @@ def _paths_of_kind(item: Mapping[str, Any], kind: str) -> Iterator[str]:
         yield item["path"]
     for child in item.get("children", ()):
         yield from _paths_of_kind(child, kind)
+
+
+def _hold(clock: Any) -> None:
+    hold = getattr(clock, "hold", None)  # a WallClock; a SimClock stands still by itself
+    if callable(hold):
+        hold()
+
+
+def _release(clock: Any) -> None:
+    release = getattr(clock, "release", None)
+    if callable(release):
+        release()
 
 
 def _started(record: Mapping[str, Any], node: str) -> bool:
