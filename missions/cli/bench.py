@@ -178,3 +178,22 @@ def bench_zenoh(
     missed = bench.missed(bench.main(quick=quick, calls=calls, seconds=seconds, seed=seed, until=until))
     if missed and not quick:
         _stderr([f"target missed: {', '.join(missed)}"])
+
+
+@bench_app.command("monitor")
+def bench_monitor(
+    quick: bool = typer.Option(False, help="shorter runs, one repeat: a smoke test (about a minute)"),
+) -> None:
+    """The live monitor with a real page (headless Chromium): tick cost with the page against without
+    (target <= 1.1x), status-to-page latency (p99 <= 200 ms), a 2,000-node tree's frames per second,
+    the page's memory over a simulated hour."""
+    from missions.bench import bench_monitor as bench
+
+    results = bench.main(quick=quick)
+    if not results:
+        raise typer.Exit(1)  # Playwright or chromium missing: said why
+    missed = bench.missed(results)
+    if missed:
+        _stderr([f"target missed: {', '.join(missed)}"])
+        if not quick:
+            raise typer.Exit(1)
