@@ -67,6 +67,10 @@ def load(path: str | Path, include_dirs: Iterable[str | Path] = ()) -> Loaded:
     ``include_dirs``: folders besides the mission's own tree and the built-in library that
     includes may come from (``BOTSTAGE_INCLUDE_PATH`` adds more)."""
     path = Path(path)
+    if path.suffix.lower() == ".xml":  # a BehaviorTree.CPP v4 tree, read as the mission it describes
+        from behaviors.btcpp.to_spec import load_xml
+
+        return load_xml(path)
     locations = Locations(root=Location(display_name(path), 1, 1))
     state = _Load(include_roots(path, include_dirs), [], [path], Budget())
     data = parse(path, state.problems, locations, budget=state.budget)

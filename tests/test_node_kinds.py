@@ -38,6 +38,11 @@ BUILTIN = {
     "condition",
     "subtree",
     "machine",
+    # BehaviorTree.CPP v4's built-in nodes, under their own IDs (behaviors/btcpp/nodes.py)
+    *("Sequence", "SequenceWithMemory", "ReactiveSequence", "Fallback", "ReactiveFallback", "Parallel"),
+    *("ParallelAll", "IfThenElse", "WhileDoElse", "Switch2", "Switch3", "Switch4", "Switch5", "Switch6"),
+    *("Inverter", "ForceSuccess", "ForceFailure", "KeepRunningUntilFailure", "RetryUntilSuccessful"),
+    *("Repeat", "RunOnce", "Timeout", "Delay", "AlwaysSuccess", "AlwaysFailure", "Sleep", "SetBlackboard"),
 }
 
 

@@ -19,7 +19,12 @@ from behaviors.kinds.base import NodeKind
 from robots.plugins import PluginProblem, discover
 
 ENTRY_POINT_GROUP = "botstage.nodes"
-BUILTIN_MODULES = ("behaviors.kinds.composites", "behaviors.kinds.decorators", "behaviors.kinds.leaves")
+BUILTIN_MODULES = (
+    "behaviors.kinds.composites",
+    "behaviors.kinds.decorators",
+    "behaviors.kinds.leaves",
+    "behaviors.btcpp.nodes",  # BehaviorTree.CPP v4's built-in nodes, under their BT.CPP IDs
+)
 
 
 def _is_kind(value: object) -> bool:

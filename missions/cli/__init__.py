@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from missions.cli import backends, certs, chat, distributed, gallery, maps, monitor, pictures, robots, run
+from missions.cli import backends, btcpp, certs, chat, distributed, gallery, maps, monitor, pictures, robots, run
 from missions.cli.bench import bench_app
 from missions.cli.run import scenario_app
 from missions.cli.serve import serve_app
@@ -55,6 +55,7 @@ serve_app.command("process")(distributed.process)
 app.command()(run.validate)
 app.command()(run.schema)
 app.command()(run.run)
+app.command("import")(btcpp.import_)
 app.command()(monitor.monitor)
 app.command()(gallery.order)
 app.command()(pictures.tree)

@@ -85,7 +85,11 @@ def _live_progress(live: Live):
 
 
 def run(
-    mission: Path = typer.Argument(DEFAULT_MISSION, help="mission YAML (default: the PeopleBot entertainer)"),
+    mission: Path = typer.Argument(
+        DEFAULT_MISSION, help="mission YAML or BehaviorTree.CPP v4 XML (default: the PeopleBot entertainer)"
+    ),
+    robot: str | None = typer.Option(None, help="run on this robot profile instead of the mission's (for XML trees)"),
+    world: str | None = typer.Option(None, help="in this world (map) instead of the mission's (for XML trees)"),
     backend: str = typer.Option(DEFAULT, help=backend_help()),
     port: str | None = typer.Option(None, help="the robot's serial port, e.g. /dev/ttyACM0 (--backend-opt port=...)"),
     backend_opt: list[str] = typer.Option(
@@ -114,8 +118,11 @@ def run(
     Exit status: 0 success or time limit, 1 nothing ran (invalid mission, a file), 2 usage,
     3 the mission ended in failure, 4 the run stopped on an error, 130 interrupted.
     """
+    from missions.cli.btcpp import runner_for, warn_unplaced
     from missions.runner import MissionInvalid, RunError
-    from missions.runner import run as run_mission
+
+    run_mission = runner_for(robot, world)
+    warn_unplaced(mission, robot, world)
 
     given = {
         "backend": backend,

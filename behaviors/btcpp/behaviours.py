@@ -1,0 +1,530 @@
+"""BehaviorTree.CPP v4's built-in nodes as py_trees behaviours, tick for tick.
+
+Each class follows BT.CPP's own ``tick()``/``halt()`` (``src/controls/*.cpp``,
+``src/decorators/*.cpp``, ``include/behaviortree_cpp/{actions,decorators}/*.h``), so a tree
+imported from XML runs as it would under BT.CPP. Two translations hold throughout:
+
+- BT.CPP's IDLE is py_trees' "not RUNNING": py_trees re-initialises any node that is not RUNNING
+  when it is ticked, so BT.CPP's ``resetChildren()`` only has to halt children that still run.
+- A tree built by BT.CPP's factory gives every node a wake-up signal (``Tree::initialize``), so
+  ``requiresWakeUp()`` is always true: SequenceWithMemory, RetryUntilSuccessful and Repeat return
+  RUNNING after a child that completed within the tick (it was IDLE before it), instead of looping.
+
+Time is the run's clock (``runtime.clock``), never the wall clock. BT.CPP's SKIPPED status (from
+pre-conditions and ``RunOnce then_skip``) has no py_trees equivalent; see ``RunOnce``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+import py_trees
+from py_trees.common import Status
+
+from behaviors.blackboard import BlackboardError
+
+if TYPE_CHECKING:
+    from behaviors.blackboard import NodeAccess
+    from behaviors.runtime import Runtime
+
+Behaviour = py_trees.behaviour.Behaviour
+DONE = (Status.SUCCESS, Status.FAILURE)
+
+
+def halt(node: Behaviour) -> None:
+    """BT.CPP's haltChild: a running node is halted; one that is not running is already IDLE to us."""
+    if node.status is Status.RUNNING:
+        node.stop(Status.INVALID)
+
+
+def threshold(value: int, children: int) -> int:
+    """BT.CPP's reading of a count where -1 means all children, -2 all but one, ..."""
+    return max(children + value + 1, 0) if value < 0 else value
+
+
+class _Control(py_trees.composites.Composite):
+    """A control node whose whole tick is its own (BT.CPP's ControlNode)."""
+
+    def _reset(self) -> None:
+        """Forget the node's progress (called when it is halted)."""
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status is Status.INVALID:
+            self._reset()
+
+    def _reset_children(self) -> None:
+        for child in self.children:
+            halt(child)
+
+    def _end(self, status: Status) -> Iterator[Behaviour]:
+        self._reset_children()
+        self.stop(status)
+        yield self
+
+    def _running(self) -> Iterator[Behaviour]:
+        self.status = Status.RUNNING
+        yield self
+
+
+class Sequence(_Control):
+    """Sequence and Fallback, with or without memory.
+
+    ``carry_on`` is the status that moves to the next child (SUCCESS for a sequence, FAILURE for a
+    fallback). Without memory (Sequence, Fallback) the other completed status resets the node to its
+    first child; with memory (SequenceWithMemory) it stays on the child that failed, halting only
+    from there on, and a halt does not reset it either (BT.CPP leaves ``current_child_idx_`` alone).
+    """
+
+    def __init__(self, name: str, children: list[Behaviour], carry_on: Status, memory: bool = False) -> None:
+        super().__init__(name=name, children=list(children))
+        self.carry_on = carry_on
+        self.memory = memory
+        self.index = 0
+
+    def _reset(self) -> None:
+        if not self.memory:
+            self.index = 0
+
+    def tick(self) -> Iterator[Behaviour]:
+        count = len(self.children)
+        while self.index < count:
+            child = self.current_child = self.children[self.index]
+            before = child.status
+            yield from child.tick()
+            status = child.status
+            if status is Status.RUNNING:
+                yield from self._running()
+                return
+            if status is not self.carry_on:
+                if self.memory:
+                    for later in self.children[self.index :]:
+                        halt(later)
+                    self.stop(status)
+                    yield self
+                else:
+                    self.index = 0
+                    yield from self._end(status)
+                return
+            self.index += 1
+            if self.memory and before is not Status.RUNNING and self.index < count:
+                yield from self._running()  # the wake-up rule: one synchronous child per tick
+                return
+        self.index = 0
+        yield from self._end(self.carry_on)
+
+
+class Reactive(_Control):
+    """ReactiveSequence and ReactiveFallback: every tick from the first child; a child that runs
+    halts every other, the first child that ends the node (``decisive``) halts the rest."""
+
+    def __init__(self, name: str, children: list[Behaviour], decisive: Status) -> None:
+        super().__init__(name=name, children=list(children))
+        self.decisive = decisive
+
+    def tick(self) -> Iterator[Behaviour]:
+        for index, child in enumerate(self.children):
+            self.current_child = child
+            yield from child.tick()
+            if child.status is Status.RUNNING:
+                for other, sibling in enumerate(self.children):
+                    if other != index:
+                        halt(sibling)
+                yield from self._running()
+                return
+            if child.status is self.decisive:
+                yield from self._end(self.decisive)
+                return
+        yield from self._end(Status.FAILURE if self.decisive is Status.SUCCESS else Status.SUCCESS)
+
+
+class Parallel(_Control):
+    """Every child that has not completed is ticked; SUCCESS at ``success_count`` successes, FAILURE
+    at ``failure_count`` failures or when success became impossible (checked after each child)."""
+
+    def __init__(self, name: str, children: list[Behaviour], success_count: int, failure_count: int) -> None:
+        super().__init__(name=name, children=list(children))
+        self.success_count = success_count
+        self.failure_count = failure_count
+        self.completed: set[int] = set()
+        self.successes = 0
+        self.failures = 0
+
+    def _reset(self) -> None:
+        self.completed.clear()
+        self.successes = self.failures = 0
+
+    def tick(self) -> Iterator[Behaviour]:
+        count = len(self.children)
+        need_success = threshold(self.success_count, count)
+        need_failure = threshold(self.failure_count, count)
+        for index, child in enumerate(self.children):
+            if index not in self.completed:
+                self.current_child = child
+                yield from child.tick()
+                if child.status in DONE:
+                    self.completed.add(index)
+                    if child.status is Status.SUCCESS:
+                        self.successes += 1
+                    else:
+                        self.failures += 1
+            if self.successes >= need_success:
+                self._reset()
+                yield from self._end(Status.SUCCESS)
+                return
+            if count - self.failures < need_success or self.failures == need_failure:
+                self._reset()
+                yield from self._end(Status.FAILURE)
+                return
+        yield from self._running()
+
+
+class ParallelAll(_Control):
+    """Every child runs to completion; then FAILURE if at least ``max_failures`` failed."""
+
+    def __init__(self, name: str, children: list[Behaviour], max_failures: int) -> None:
+        super().__init__(name=name, children=list(children))
+        self.max_failures = max_failures
+        self.completed: set[int] = set()
+        self.failures = 0
+
+    def _reset(self) -> None:
+        self.completed.clear()
+        self.failures = 0
+
+    def tick(self) -> Iterator[Behaviour]:
+        for index, child in enumerate(self.children):
+            if index in self.completed:
+                continue
+            self.current_child = child
+            yield from child.tick()
+            if child.status in DONE:
+                self.completed.add(index)
+                self.failures += child.status is Status.FAILURE
+        if len(self.completed) < len(self.children):
+            yield from self._running()
+            return
+        failed = self.failures >= threshold(self.max_failures, len(self.children))
+        self._reset()
+        yield from self._end(Status.FAILURE if failed else Status.SUCCESS)
+
+
+class IfThenElse(_Control):
+    """The condition (first child) is ticked until it completes, then the branch it chose runs to
+    completion without the condition being ticked again; no else branch means FAILURE."""
+
+    def __init__(self, name: str, children: list[Behaviour]) -> None:
+        super().__init__(name=name, children=list(children))
+        self.branch = 0
+
+    def _reset(self) -> None:
+        self.branch = 0
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.branch == 0:
+            condition = self.current_child = self.children[0]
+            yield from condition.tick()
+            if condition.status is Status.RUNNING:
+                yield from self._running()
+                return
+            if condition.status is Status.SUCCESS:
+                self.branch = 1
+            elif len(self.children) == 3:
+                self.branch = 2
+            else:
+                yield from self._end(Status.FAILURE)
+                return
+        branch = self.current_child = self.children[self.branch]
+        yield from branch.tick()
+        if branch.status is Status.RUNNING:
+            yield from self._running()
+            return
+        self.branch = 0
+        yield from self._end(branch.status)
+
+
+class WhileDoElse(_Control):
+    """The condition is ticked every tick; it picks the branch to tick, halting the other one."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        condition = self.current_child = self.children[0]
+        yield from condition.tick()
+        if condition.status is Status.RUNNING:
+            yield from self._running()
+            return
+        three = len(self.children) == 3
+        if condition.status is Status.SUCCESS:
+            if three:
+                halt(self.children[2])
+            branch = self.children[1]
+        elif three:
+            halt(self.children[1])
+            branch = self.children[2]
+        else:
+            yield from self._end(Status.FAILURE)
+            return
+        self.current_child = branch
+        yield from branch.tick()
+        if branch.status is Status.RUNNING:
+            yield from self._running()
+            return
+        yield from self._end(branch.status)
+
+
+class Switch(_Control):
+    """The child of the first case equal to the blackboard value (the last child by default);
+    a different case than the running one halts it first."""
+
+    def __init__(
+        self, name: str, children: list[Behaviour], variable: Any, cases: list[str | None], access: NodeAccess
+    ) -> None:
+        super().__init__(name=name, children=list(children))
+        self.variable = variable  # a key name (str wrapped by the kind) or a literal
+        self.cases = cases
+        self.access = access
+        self.running: int = -1
+
+    def _reset(self) -> None:
+        self.running = -1
+
+    def _value(self) -> str | None:
+        ref = self.variable
+        if isinstance(ref, BoundKey):
+            try:
+                return as_text(self.access.get(ref.key))
+            except BlackboardError:
+                return None  # BT.CPP: no variable, jump to the default
+        return ref
+
+    def tick(self) -> Iterator[Behaviour]:
+        value = self._value()
+        match = len(self.cases)
+        if value is not None:
+            for index, case in enumerate(self.cases):
+                if case is not None and same_text(value, case):
+                    match = index
+                    break
+        if self.running not in (-1, match):
+            halt(self.children[self.running])
+        child = self.current_child = self.children[match]
+        yield from child.tick()
+        if child.status is Status.RUNNING:
+            self.running = match
+            yield from self._running()
+            return
+        self.running = -1
+        yield from self._end(child.status)
+
+
+class BoundKey:
+    """A port bound to a blackboard key (as opposed to a literal)."""
+
+    __slots__ = ("key",)
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+
+
+def as_text(value: Any) -> str:
+    """A blackboard value as BT.CPP's ``toStr`` writes it (booleans are ``true``/``false``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def same_text(value: str, case: str) -> bool:
+    """BT.CPP's CheckStringEquality without enums: equal strings, or equal numbers."""
+    if value == case:
+        return True
+    try:
+        return float(value) == float(case)
+    except ValueError:
+        return False
+
+
+# -- decorators -----------------------------------------------------------------------------
+
+
+class _Decorator(py_trees.decorators.Decorator):
+    """A decorator whose whole tick is its own (BT.CPP's DecoratorNode)."""
+
+    def _reset(self) -> None:
+        """Forget the node's progress (called when it is halted)."""
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status is Status.INVALID:
+            self._reset()
+
+    def update(self) -> Status:
+        return self.status
+
+    def _end(self, status: Status) -> Iterator[Behaviour]:
+        halt(self.decorated)
+        self.stop(status)
+        yield self
+
+    def _running(self) -> Iterator[Behaviour]:
+        self.status = Status.RUNNING
+        yield self
+
+
+class Loop(_Decorator):
+    """RetryUntilSuccessful (``until`` SUCCESS: a failure is retried) and Repeat (``until``
+    FAILURE: a success is repeated), ``times`` attempts or cycles, -1 forever.
+
+    A child that completes after it was RUNNING is started again in the same tick; one that
+    completes within its first tick makes the node return RUNNING (BT.CPP's wake-up rule)."""
+
+    def __init__(self, name: str, child: Behaviour, times: int, until: Status) -> None:
+        super().__init__(name=name, child=child)
+        self.times = times
+        self.until = until
+        self.count = 0
+
+    def _reset(self) -> None:
+        self.count = 0
+
+    def _more(self) -> bool:
+        return self.count < self.times or self.times == -1
+
+    def tick(self) -> Iterator[Behaviour]:
+        child = self.decorated
+        looping = self._more()
+        while looping:
+            before = child.status
+            yield from child.tick()
+            if child.status is Status.RUNNING:
+                yield from self._running()
+                return
+            if child.status is self.until:
+                self.count = 0
+                yield from self._end(self.until)
+                return
+            self.count += 1
+            looping = self._more()
+            if before is not Status.RUNNING and looping:
+                yield from self._running()
+                return
+        self.count = 0
+        yield from self._end(Status.FAILURE if self.until is Status.SUCCESS else Status.SUCCESS)
+
+
+class RunOnce(_Decorator):
+    """The child runs to completion once; afterwards its result again (``then_skip`` false) or,
+    ``then_skip`` true, SUCCESS: BT.CPP returns SKIPPED there, which py_trees has not, and a
+    skipped node lets a Sequence move on as a success would. Not reset by a halt (as in BT.CPP)."""
+
+    def __init__(self, name: str, child: Behaviour, then_skip: bool) -> None:
+        super().__init__(name=name, child=child)
+        self.then_skip = then_skip
+        self.result: Status | None = None
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.result is not None:
+            self.stop(Status.SUCCESS if self.then_skip else self.result)
+            yield self
+            return
+        yield from self.decorated.tick()
+        status = self.decorated.status
+        if status is Status.RUNNING:
+            yield from self._running()
+            return
+        self.result = status
+        yield from self._end(status)
+
+
+class Delay(_Decorator):
+    """RUNNING for ``seconds`` of run time from its first tick, then the child's status; a halt or
+    the child's completion starts the wait again."""
+
+    def __init__(self, name: str, child: Behaviour, seconds: float, runtime: Runtime) -> None:
+        super().__init__(name=name, child=child)
+        self.seconds = seconds
+        self.runtime = runtime
+        self.ready_at: float | None = None
+
+    def _reset(self) -> None:
+        self.ready_at = None
+
+    def tick(self) -> Iterator[Behaviour]:
+        now = self.runtime.clock.now()
+        if self.ready_at is None:
+            self.ready_at = now + self.seconds - 1e-9
+            yield from self._running()  # the timer fires after this tick at the earliest
+            return
+        if now < self.ready_at:
+            yield from self._running()
+            return
+        yield from self.decorated.tick()
+        if self.decorated.status is Status.RUNNING:
+            yield from self._running()
+            return
+        self.ready_at = None
+        yield from self._end(self.decorated.status)
+
+
+class PassThrough(_Decorator):
+    """A Timeout of 0 ms: BT.CPP starts no timer, so the child's status passes through."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        yield from self.decorated.tick()
+        if self.decorated.status is Status.RUNNING:
+            yield from self._running()
+            return
+        yield from self._end(self.decorated.status)
+
+
+# -- leaves ---------------------------------------------------------------------------------
+
+
+class Constant(Behaviour):
+    """AlwaysSuccess and AlwaysFailure."""
+
+    def __init__(self, name: str, result: Status) -> None:
+        super().__init__(name=name)
+        self.result = result
+
+    def update(self) -> Status:
+        return self.result
+
+
+class Sleep(Behaviour):
+    """RUNNING until ``seconds`` of run time have passed since its first tick, then SUCCESS;
+    0 succeeds at once."""
+
+    def __init__(self, name: str, seconds: float, runtime: Runtime) -> None:
+        super().__init__(name=name)
+        self.seconds = seconds
+        self.runtime = runtime
+        self.until = 0.0
+
+    def initialise(self) -> None:
+        self.until = self.runtime.clock.now() + self.seconds - 1e-9
+
+    def update(self) -> Status:
+        if self.seconds <= 0:
+            return Status.SUCCESS
+        if self.status is not Status.RUNNING:
+            return Status.RUNNING  # the first tick starts the timer
+        return Status.RUNNING if self.runtime.clock.now() < self.until else Status.SUCCESS
+
+
+class SetBlackboard(Behaviour):
+    """Write ``value`` (a literal, or the value of another key) to ``output_key``; SUCCESS."""
+
+    def __init__(self, name: str, value: Any, output_key: str, access: NodeAccess) -> None:
+        super().__init__(name=name)
+        self.value = value
+        self.output_key = output_key
+        self.access = access
+
+    def update(self) -> Status:
+        value = self.value
+        try:
+            if isinstance(value, BoundKey):
+                value = self.access.get(value.key)
+            self.access.set(self.output_key, value)
+        except BlackboardError as exc:
+            self.feedback_message = str(exc)
+            return Status.FAILURE
+        return Status.SUCCESS

@@ -1,0 +1,79 @@
+"""Verbs for BehaviorTree.CPP v4 XML: `botstage import` writes the mission a tree file describes;
+`botstage run tree.xml --robot R --world W` runs one directly (see ``runner_for``)."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from missions.cli.common import _fail, _stderr, console, input_file, os_problem, output_file
+
+
+def import_(
+    tree: Path = typer.Argument(..., help="a BehaviorTree.CPP v4 XML file", callback=input_file),
+    output: Path | None = typer.Option(
+        None, "-o", "--output", help="the mission YAML to write (default: standard output)", callback=output_file
+    ),
+    robot: str | None = typer.Option(None, help="the robot profile the mission names (default: none, fill it in)"),
+    world: str | None = typer.Option(None, help="the world (map) the mission names (default: none, fill it in)"),
+) -> None:
+    """Write the mission a BehaviorTree.CPP v4 XML file describes; errors as file:line:col, exit 1."""
+    from behaviors.btcpp.to_spec import load_xml
+    from missions.api.mission import dump_yaml
+
+    loaded = load_xml(tree)
+    if loaded.data is None:
+        raise _fail([str(problem) for problem in loaded.problems])
+    data = dict(loaded.data)
+    placed = {field: value for field, value in (("robot", robot), ("world", world)) if value is not None}
+    text = dump_yaml({"name": data.pop("name"), **placed, **data})
+    if output is None:
+        sys.stdout.write(text)
+        return
+    try:
+        output.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise _fail(f"error: {os_problem(exc)}") from None
+    console.print(f"wrote {output}", highlight=False, soft_wrap=True)
+
+
+def runner_for(robot: str | None, world: str | None) -> Callable[..., Any]:
+    """How `run` runs a mission file: as it is, or, with ``--robot``/``--world`` (a tree file
+    names neither), as a mission with them set: checked first (problems at the file's lines),
+    then written to the run folder as mission.yaml and run from there."""
+    from missions.runner import run
+
+    if robot is None and world is None:
+        return run
+
+    from missions.api.mission import Mission
+    from robots.profile import known_profiles, profile_path
+    from robots.sim.backend import known_maps, map_path
+
+    # found from the working directory, as paths on a command line are; a bad one is a usage error
+    for option, value, find, shipped, noun in (
+        ("--robot", robot, profile_path, known_profiles, "robot profile"),
+        ("--world", world, map_path, known_maps, "world"),
+    ):
+        if value is not None and find(value, Path.cwd()) is None:
+            raise _fail(f"error: {option}: unknown {noun} {value!r} (shipped: {', '.join(shipped())})", 2)
+
+    def run_placed(path: Path, **options: Any) -> Any:
+        mission = Mission.from_yaml(path)
+        if robot is not None:
+            mission.robot = str(profile_path(robot, Path.cwd()) if robot not in known_profiles() else robot)
+        if world is not None:
+            mission.world = str(map_path(world, Path.cwd()) if world not in known_maps() else world)
+        return mission.run(**options)
+
+    return run_placed
+
+
+def warn_unplaced(path: Path, robot: str | None, world: str | None) -> None:
+    """A tree file run without a robot runs its tree alone, on no robot: say so."""
+    if path.suffix.lower() == ".xml" and robot is None:
+        _stderr([f"note: {path} names no robot; add --robot PROFILE --world MAP to drive one"])

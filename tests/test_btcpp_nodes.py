@@ -1,0 +1,348 @@
+"""BehaviorTree.CPP v4's built-in nodes, tick by tick, against BT.CPP's own tick()/halt().
+
+Each case scripts its children (``S``, ``F``, ``R``: one status per tick of that child, the last
+repeated) and lists, per tick of the tree, the root's status and what happened to the children:
+``A`` A was ticked, ``A!`` A was halted while running. The expectations are read off BT.CPP's
+sources (src/controls/*.cpp, src/decorators/*.cpp, include/behaviortree_cpp/*) as of v4; a tree
+built by its factory gives every node a wake-up signal, hence the RUNNING after a child that
+completed synchronously in SequenceWithMemory, RetryUntilSuccessful and Repeat.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import py_trees
+import pytest
+from py_trees.common import Status
+
+from behaviors.builder import SpecError
+from behaviors.kinds import LeafKind, NodeBuild, NodeKinds
+
+LETTERS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
+LOG: list[str] = []
+
+
+class _Scripted(py_trees.behaviour.Behaviour):
+    def __init__(self, name: str, script: str) -> None:
+        super().__init__(name=name)
+        self.script = script
+        self.ticks = 0
+
+    def update(self) -> Status:
+        LOG.append(self.name)
+        letter = self.script[min(self.ticks, len(self.script) - 1)]
+        self.ticks += 1
+        return LETTERS[letter]
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status is Status.INVALID and self.status is Status.RUNNING:
+            LOG.append(self.name + "!")
+
+
+class Scripted(LeafKind):
+    name = "Scripted"
+    description = "a test leaf that returns a scripted status each tick"
+
+    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour:
+        (name, script), *_ = b.value.items()
+        return _Scripted(name, script)
+
+
+def leaf(name: str, script: str) -> dict[str, Any]:
+    return {"Scripted": {name: script}, "name": name}
+
+
+@pytest.fixture
+def engine(make_engine: Any) -> Iterator[Any]:
+    kinds = NodeKinds.builtin()
+    kinds.register(Scripted)
+    LOG.clear()
+    yield make_engine(rate_hz=10, kinds=kinds)
+
+
+def run(engine: Any, spec: dict[str, Any], ticks: int, halt_after: int | None = None) -> list[tuple[str, str]]:
+    """(status, log) per tick; ``halt_after``: halt the whole tree after that many ticks."""
+    engine.set_root(engine.builder().tree(spec))
+    got = []
+    for n in range(ticks):
+        if halt_after is not None and n == halt_after:
+            engine.root.stop(Status.INVALID)
+            got.append(("halt", " ".join(LOG)))
+            LOG.clear()
+        status = engine.tick()
+        got.append((status.value[0], " ".join(LOG)))
+        LOG.clear()
+    return got
+
+
+A, B, C = "A", "B", "C"
+
+CASES: list[tuple[str, dict[str, Any], list[tuple[str, str]], int | None]] = [
+    # -- Sequence: keeps its child while RUNNING; resets on SUCCESS and on FAILURE
+    (
+        "sequence resumes the running child",
+        {"Sequence": [leaf(A, "S"), leaf(B, "RRS"), leaf(C, "S")]},
+        [("R", "A B"), ("R", "B"), ("S", "B C")],
+        None,
+    ),
+    (
+        "sequence restarts from the first child after a failure",
+        {"Sequence": [leaf(A, "S"), leaf(B, "RFS"), leaf(C, "S")]},
+        [("R", "A B"), ("F", "B"), ("S", "A B C")],
+        None,
+    ),
+    (
+        "a halt resets a sequence",
+        {"Sequence": [leaf(A, "S"), leaf(B, "R")]},
+        [("R", "A B"), ("halt", "B!"), ("R", "A B")],
+        1,
+    ),
+    # -- SequenceWithMemory: a failure is retried from the failed child; one synchronous child per tick
+    (
+        "sequence with memory does not go back after a failure",
+        {"SequenceWithMemory": [leaf(A, "S"), leaf(B, "RFS"), leaf(C, "S")]},
+        [("R", "A"), ("R", "B"), ("F", "B"), ("R", "B"), ("S", "C")],
+        None,
+    ),
+    (
+        "a halt does not reset a sequence with memory",
+        {"SequenceWithMemory": [leaf(A, "S"), leaf(B, "RS")]},
+        [("R", "A"), ("R", "B"), ("halt", "B!"), ("S", "B")],
+        2,
+    ),
+    # -- ReactiveSequence: from the first child every tick; a failure halts the running child
+    (
+        "reactive sequence halts the running child when an earlier one fails",
+        {"ReactiveSequence": [leaf(A, "SSF"), leaf(B, "R")]},
+        [("R", "A B"), ("R", "A B"), ("F", "A B!")],
+        None,
+    ),
+    (
+        "reactive sequence halts a later child when an earlier one runs",
+        {"ReactiveSequence": [leaf(A, "SR"), leaf(B, "R")]},
+        [("R", "A B"), ("R", "A B!")],
+        None,
+    ),
+    # -- Fallback and ReactiveFallback, the mirror images
+    (
+        "fallback resumes the running child",
+        {"Fallback": [leaf(A, "F"), leaf(B, "RRF"), leaf(C, "S")]},
+        [("R", "A B"), ("R", "B"), ("S", "B C"), ("S", "A B C")],
+        None,
+    ),
+    (
+        "reactive fallback halts the running child when an earlier one succeeds",
+        {"ReactiveFallback": [leaf(A, "FFS"), leaf(B, "R")]},
+        [("R", "A B"), ("R", "A B"), ("S", "A B!")],
+        None,
+    ),
+    # -- Parallel: completed children are not ticked again; checks after each child
+    (
+        "parallel succeeds at success_count, halting the rest",
+        {"Parallel": [leaf(A, "RS"), leaf(B, "RRS"), leaf(C, "R")], "success_count": 2},
+        [("R", "A B C"), ("R", "A B C"), ("S", "B C!")],
+        None,
+    ),
+    (
+        "parallel by default needs every success and fails at the first failure",
+        {"Parallel": [leaf(A, "S"), leaf(B, "RF")]},
+        [("R", "A B"), ("F", "B")],
+        None,
+    ),
+    (
+        "parallel with failure_count -1 fails only when every child failed",
+        {"Parallel": [leaf(A, "F"), leaf(B, "RS")], "success_count": 1, "failure_count": -1},
+        [("R", "A B"), ("S", "B")],
+        None,
+    ),
+    (
+        "parallel fails as soon as success has become impossible",
+        {"Parallel": [leaf(A, "F"), leaf(B, "R")], "failure_count": 2},
+        [("F", "A")],
+        None,
+    ),
+    # -- ParallelAll: every child completes; then max_failures decides
+    (
+        "parallel all waits for every child, then fails at max_failures",
+        {"ParallelAll": [leaf(A, "F"), leaf(B, "RS")]},
+        [("R", "A B"), ("F", "B")],
+        None,
+    ),
+    (
+        "parallel all succeeds below max_failures",
+        {"ParallelAll": [leaf(A, "F"), leaf(B, "RS")], "max_failures": 2},
+        [("R", "A B"), ("S", "B")],
+        None,
+    ),
+    # -- IfThenElse: the condition is not ticked again once a branch runs
+    (
+        "if-then-else runs the then branch without re-checking",
+        {"IfThenElse": [leaf(A, "RS"), leaf(B, "RS"), leaf(C, "S")]},
+        [("R", "A"), ("R", "A B"), ("S", "B")],
+        None,
+    ),
+    (
+        "if-then-else runs the else branch",
+        {"IfThenElse": [leaf(A, "F"), leaf(B, "S"), leaf(C, "RF")]},
+        [("R", "A C"), ("F", "C")],
+        None,
+    ),
+    (
+        "if-then without else fails when the condition fails",
+        {"IfThenElse": [leaf(A, "F"), leaf(B, "S")]},
+        [("F", "A")],
+        None,
+    ),
+    # -- WhileDoElse: the condition every tick, halting the branch it no longer picks
+    (
+        "while-do-else switches branch, halting the other",
+        {"WhileDoElse": [leaf(A, "SSF"), leaf(B, "R"), leaf(C, "R")]},
+        [("R", "A B"), ("R", "A B"), ("R", "A B! C")],
+        None,
+    ),
+    (
+        "while-do without else fails, halting the do branch",
+        {"WhileDoElse": [leaf(A, "SF"), leaf(B, "R")]},
+        [("R", "A B"), ("F", "A B!")],
+        None,
+    ),
+    # -- decorators that map the child's status
+    ("inverter", {"Inverter": leaf(A, "RSF")}, [("R", "A"), ("F", "A"), ("S", "A")], None),
+    ("force success", {"ForceSuccess": leaf(A, "RSF")}, [("R", "A"), ("S", "A"), ("S", "A")], None),
+    ("force failure", {"ForceFailure": leaf(A, "RSF")}, [("R", "A"), ("F", "A"), ("F", "A")], None),
+    (
+        "keep running until failure",
+        {"KeepRunningUntilFailure": leaf(A, "SSF")},
+        [("R", "A"), ("R", "A"), ("F", "A")],
+        None,
+    ),
+    # -- RetryUntilSuccessful and Repeat: in-tick re-tick after a RUNNING child, RUNNING after a synchronous one
+    (
+        "retry: one synchronous attempt per tick",
+        {"RetryUntilSuccessful": leaf(A, "FFS"), "num_attempts": 3},
+        [("R", "A"), ("R", "A"), ("S", "A")],
+        None,
+    ),
+    (
+        "retry: a child that ran and failed is started again in the same tick",
+        {"RetryUntilSuccessful": leaf(A, "RFRS"), "num_attempts": 3},
+        [("R", "A"), ("R", "A A"), ("S", "A")],
+        None,
+    ),
+    (
+        "retry fails after num_attempts",
+        {"RetryUntilSuccessful": leaf(A, "F"), "num_attempts": 2},
+        [("R", "A"), ("F", "A")],
+        None,
+    ),
+    (
+        "a halt resets retry's count of attempts",
+        {"RetryUntilSuccessful": leaf(A, "FRF"), "num_attempts": 2},
+        [("R", "A"), ("R", "A"), ("halt", "A!"), ("R", "A")],
+        2,
+    ),
+    (
+        "repeat: one synchronous cycle per tick",
+        {"Repeat": leaf(A, "S"), "num_cycles": 3},
+        [("R", "A"), ("R", "A"), ("S", "A")],
+        None,
+    ),
+    (
+        "repeat: a child that ran and succeeded is started again in the same tick",
+        {"Repeat": leaf(A, "RSRS"), "num_cycles": 2},
+        [("R", "A"), ("R", "A A"), ("S", "A")],
+        None,
+    ),
+    ("repeat ends at the first failure", {"Repeat": leaf(A, "SF"), "num_cycles": 5}, [("R", "A"), ("F", "A")], None),
+    # -- RunOnce
+    (
+        "run once repeats the result without ticking",
+        {"RunOnce": leaf(A, "RF"), "then_skip": False},
+        [("R", "A"), ("F", "A"), ("F", "")],
+        None,
+    ),
+    (
+        "run once then skips (SKIPPED, a success to py_trees)",
+        {"RunOnce": leaf(A, "F")},
+        [("F", "A"), ("S", ""), ("S", "")],
+        None,
+    ),
+    # -- time, from the run's clock (10 Hz here: tick n is at (n - 1) / 10 s)
+    (
+        "timeout halts the running child and fails",
+        {"Timeout": leaf(A, "R"), "msec": 250},
+        [("R", "A"), ("R", "A"), ("R", "A"), ("F", "A!")],
+        None,
+    ),
+    ("timeout 0 is no timeout", {"Timeout": leaf(A, "RRRS"), "msec": 0}, [("R", "A")] * 3 + [("S", "A")], None),
+    (
+        "delay waits, then ticks the child",
+        {"Delay": leaf(A, "S"), "delay_msec": 200},
+        [("R", ""), ("R", ""), ("S", "A"), ("R", "")],
+        None,
+    ),
+    ("sleep", {"Sleep": {"msec": 200}}, [("R", ""), ("R", ""), ("S", "")], None),
+    ("sleep 0 succeeds at once", {"Sleep": {"msec": 0}}, [("S", "")], None),
+    ("always success", {"AlwaysSuccess": {}}, [("S", "")], None),
+    ("always failure", {"AlwaysFailure": None}, [("F", "")], None),
+]
+
+
+@pytest.mark.parametrize(("spec", "expected", "halt_after"), [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_node_ticks_as_in_btcpp(engine: Any, spec: dict[str, Any], expected: list, halt_after: int | None) -> None:
+    assert run(engine, spec, len([e for e in expected if e[0] != "halt"]), halt_after) == expected
+
+
+def test_switch_picks_the_case_and_halts_the_one_that_ran(engine: Any) -> None:
+    spec = {
+        "Switch2": [leaf(A, "R"), leaf(B, "R"), leaf(C, "S")],
+        "variable": "{mode}",
+        "case_1": "1",
+        "case_2": "two",
+    }
+    engine.set_root(engine.builder().tree(spec))
+    engine.blackboard.set("mode", 1.0)  # a number equal to the case's number matches (CheckStringEquality)
+    assert engine.tick() is Status.RUNNING and LOG == [A]
+    LOG.clear()
+    engine.blackboard.set("mode", "two")
+    assert engine.tick() is Status.RUNNING and LOG == ["A!", B]
+    LOG.clear()
+    engine.blackboard.set("mode", "other")
+    assert engine.tick() is Status.SUCCESS and LOG == ["B!", C]
+
+
+def test_switch_without_the_variable_takes_the_default(engine: Any) -> None:
+    spec = {"Switch2": [leaf(A, "S"), leaf(B, "S"), leaf(C, "F")], "variable": "{unset}", "case_1": "1"}
+    engine.set_root(engine.builder().tree(spec))
+    assert engine.tick() is Status.FAILURE and LOG == [C]
+
+
+def test_set_blackboard_writes_literals_and_copies_keys(engine: Any) -> None:
+    spec = {
+        "Sequence": [
+            {"SetBlackboard": {"value": "42", "output_key": "answer"}},
+            {"SetBlackboard": {"value": "{answer}", "output_key": "{copy}"}},
+        ]
+    }
+    engine.set_root(engine.builder().tree(spec))
+    assert engine.tick() is Status.SUCCESS
+    assert engine.blackboard.get("answer") == "42" and engine.blackboard.get("copy") == "42"
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ({"IfThenElse": [leaf(A, "S")]}, "IfThenElse takes 2 or 3 children, got 1"),
+        ({"Parallel": [leaf(A, "S")], "success_count": 2}, "success_count 2 is more than the 1 children"),
+        ({"Switch2": [leaf(A, "S"), leaf(B, "S")], "variable": "{v}"}, "Switch2 takes 3 children"),
+        ({"RetryUntilSuccessful": leaf(A, "S")}, "num_attempts of 'RetryUntilSuccessful': field required"),
+        ({"Sleep": {"msec": 5, "sec": 1}}, "Sleep has no port 'sec'"),
+        ({"Timeout": leaf(A, "S"), "msec": -1}, "msec of 'Timeout'"),
+    ],
+)
+def test_bad_ports_are_reported_where_written(engine: Any, spec: dict[str, Any], message: str) -> None:
+    with pytest.raises(SpecError) as caught:
+        engine.builder().tree(spec)
+    assert message in str(caught.value)
