@@ -456,7 +456,9 @@ class _Composer:
 def _syntax_problem(exc: yaml.YAMLError, text: str, name: str) -> Problem:
     """A located problem for a YAML error; libyaml's wording is replaced by PyYAML's (which names
     the character or token found) when the file is small enough to parse again quickly."""
-    if _EventLoader is not yaml.SafeLoader and len(text) <= 256 * 1024:
+    nesting = "maximum nesting depth" in str(exc)  # libyaml's own cap: its mark is all we need, at once
+    # (PyYAML's pure-Python scanner takes quadratic time on deeply nested flow collections)
+    if _EventLoader is not yaml.SafeLoader and len(text) <= 256 * 1024 and not nesting:
         try:
             loader = yaml.SafeLoader(text)  # its reader checks the characters at once
             while loader.get_event() is not None:
