@@ -249,10 +249,14 @@ def test_teleop_drives_the_held_robot_and_stops_it_on_release_and_by_its_watchdo
         assert live.snapshot()["robot"]["pose"] == held_at
         assert stopped["tick"] == -1  # the tree never ticked
 
-        assert live.http.post("/api/teleop", json={"v": 0.0, "w": 0.5}).status_code == 200
-        live.until(lambda s: not s["robot"]["teleop"]["active"], "the watchdog")  # no more commands
-        turned = live.snapshot()["robot"]["pose"]
-        assert turned[2] > held_at[2]  # it turned left, then stopped by itself
+        def turned_left() -> bool:
+            assert live.http.post("/api/teleop", json={"v": 0.0, "w": 0.6}).status_code == 200
+            return live.snapshot()["robot"]["pose"][2] > held_at[2] + 0.2
+
+        wait_until(turned_left, 60, "the robot turned left")
+        # then no more commands: the watchdog stops it, and it stays where it stopped
+        quiet = live.until(lambda s: not s["robot"]["teleop"]["active"], "the watchdog")
+        assert live.snapshot()["robot"]["pose"] == quiet["robot"]["pose"]
 
         assert live.http.get("/api/camera.jpg").status_code == 200
         assert live.act(action="resume").status_code == 200

@@ -64,7 +64,6 @@ class MonitorObserver:
             "rate_hz": mission.rate_hz,
         }
         self.hub.structure = to_plain(describe(session.root))
-        self.hub.ready.set()
         if self.control is None:
             self.control = Control(self.hub, simulated)
         self.control.simulated = simulated
@@ -78,6 +77,7 @@ class MonitorObserver:
         interfaces = session.engine.interfaces
         if "display" in interfaces:
             interfaces["display"] = WatchedDisplay(self.hub, interfaces["display"])
+        self.hub.ready.set()  # last: a request may now name anything the run has
 
     def event(self, record: Mapping[str, Any]) -> None:
         self.hub.apply(record)

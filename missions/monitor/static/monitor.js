@@ -239,6 +239,7 @@
     }
     if (kind === "state" && Array.isArray(item.transitions) && item.transitions.length) {
       // compact: outcome → target's last segment, one chip each
+      row.classList.add("has-trans"); // a taller row: its placeholder size (CSS)
       const tr = el("div", "trans");
       for (const t of item.transitions) {
         const chip = el("span", "t");
@@ -450,10 +451,14 @@
     tbody.appendChild(tr);
   }
 
+  // No forced layout: a Web Animation restarts without reading offsetWidth.
+  const FLASH_FRAMES = [{ backgroundColor: "#fff4b3" }, { backgroundColor: "transparent" }];
+  const FLASH_TIMING = { duration: 1200, easing: "ease-out" };
   function flashRow(tr) {
-    tr.classList.remove("flash");
-    void tr.offsetWidth;
     tr.classList.add("flash");
+    if (typeof tr.animate !== "function") return;
+    if (tr._flash) for (const a of tr._flash) a.cancel();
+    tr._flash = [...tr.cells].map((td) => td.animate(FLASH_FRAMES, FLASH_TIMING));
   }
 
   function renderBlackboardAll() {
@@ -588,6 +593,32 @@
     return box.scrollHeight - box.scrollTop - box.clientHeight < 24;
   }
 
+  // Keep a list's end in view after rows were added, without forcing a layout: the scroll is
+  // written from a ResizeObserver callback, which runs after the frame's own layout (so reading
+  // scrollHeight there is free). Whether a list follows its end is known from the reader's
+  // scrolling (box._follow, kept by the scroll listeners), never read in the update path.
+  const stickBoxes = new Map(); // box -> forced (a reset scrolls to the end regardless)
+  const stickRO = typeof ResizeObserver === "function" ? new ResizeObserver(onStick) : null;
+
+  function scrollToEnd(box) {
+    if (box.classList.contains("photo-strip")) box.scrollLeft = box.scrollWidth;
+    else box.scrollTop = box.scrollHeight;
+  }
+
+  function stickToEnd(box, forced) {
+    if (!stickRO) { scrollToEnd(box); return; }
+    stickBoxes.set(box, !!forced || !!stickBoxes.get(box));
+    const target = box.lastElementChild || box;
+    stickRO.unobserve(target); // observed anew: reported after the next layout
+    stickRO.observe(target);
+  }
+
+  function onStick(entries) {
+    for (const e of entries) stickRO.unobserve(e.target);
+    for (const [box, forced] of stickBoxes) if (forced || box._follow !== false) scrollToEnd(box);
+    stickBoxes.clear();
+  }
+
   function timelineRow(e) {
     const ev = String(e.ev || "");
     const row = el("div", `entry ev-${ev}` + (e.level ? ` level-${String(e.level).toLowerCase()}` : ""));
@@ -634,8 +665,16 @@
     return row;
   }
 
+  // Rows are dropped from the top in batches: removing the first rows moves every row left, which
+  // costs a layout and paint invalidation of the whole list, so do it once per max/8 rows added
+  // rather than every frame (the list holds at most max + max/8 rows).
   function trim(box, max) {
-    while (box.childElementCount > max) box.firstElementChild.remove();
+    const n = box.childElementCount;
+    if (n <= max + (max >> 3)) return;
+    const range = document.createRange();
+    range.setStartBefore(box.firstElementChild);
+    range.setEndBefore(box.children[n - max]);
+    range.deleteContents();
   }
 
   function filterMatches(row) {
@@ -653,8 +692,9 @@
   function renderEntries(entries, reset) {
     const tl = $("#timeline");
     const logs = $("#logs");
-    const stickTl = reset || atBottom(tl);
-    const stickLogs = reset || atBottom(logs);
+    const stickTl = reset || tl._follow !== false;
+    const stickLogs = reset || logs._follow !== false;
+    const q = $("#timeline-filter").value.trim().toLowerCase();
     if (reset) {
       tl.textContent = "";
       logs.textContent = "";
@@ -664,7 +704,7 @@
     for (const e of entries) {
       if (!e || typeof e !== "object") continue;
       const row = timelineRow(e);
-      row.hidden = !filterMatches(row);
+      if (q && !row._q.includes(q)) row.hidden = true;
       tlFrag.appendChild(row);
       if (e.ev === "log") logFrag.appendChild(logRow(e));
     }
@@ -673,24 +713,25 @@
       const alarm = !!logFrag.querySelector(".level-warning, .level-warn, .level-error, .level-critical");
       noteUnread("logs", logFrag.childElementCount, alarm);
     }
+    const addedLogs = logFrag.childElementCount;
     logs.appendChild(logFrag);
     trim(tl, MAX_ENTRIES);
     trim(logs, MAX_ENTRIES);
-    // auto-scroll only when the reader is already at the bottom
-    if (stickTl) tl.scrollTop = tl.scrollHeight;
-    if (stickLogs) logs.scrollTop = logs.scrollHeight;
+    // auto-scroll only when the reader is already at the bottom (after layout: see stickToEnd)
+    if (stickTl) stickToEnd(tl, reset);
+    if (stickLogs && (reset || addedLogs)) stickToEnd(logs, reset);
   }
 
   function renderDisplay(items, reset) {
     const box = $("#display-list");
-    const stick = reset || atBottom(box);
+    const stick = reset || box._follow !== false;
     if (reset) box.textContent = "";
     const frag = document.createDocumentFragment();
     for (const d of items) if (d && typeof d === "object") frag.appendChild(displayRow(d));
     if (!reset) noteUnread("display", frag.childElementCount, false);
     box.appendChild(frag);
     trim(box, MAX_DISPLAY);
-    if (stick) box.scrollTop = box.scrollHeight;
+    if (stick) stickToEnd(box, reset);
   }
 
   function onTimelineClick(ev) {
@@ -756,7 +797,7 @@
     box.appendChild(frag);
     trim(box, MAX_SAID);
     if (box.firstElementChild) box.firstElementChild.classList.remove("cont"); // its speaker went
-    if (stick) box.scrollTop = box.scrollHeight;
+    if (stick) stickToEnd(box, reset);
     laterTick = null; // replay: mark the rows again
   }
 
@@ -819,7 +860,7 @@
     if (!reset) noteUnread("people", frag.childElementCount, false);
     box.appendChild(frag);
     trim(box, MAX_PHOTOS);
-    if (stick) box.scrollLeft = box.scrollWidth;
+    if (stick) stickToEnd(box, reset);
     laterTick = null;
   }
 
@@ -1057,14 +1098,21 @@
     const parts = [mission, `tick ${model.tick}`, `t ${fmtT(model.t)} s`];
     const line = $("#status-line");
     const text = parts.join("  ") + "  " + word;
-    if (line.textContent !== text) {
-      line.textContent = "";
-      line.appendChild(el("span", "sl-mission", mission));
-      line.appendChild(document.createTextNode(`  tick ${model.tick}  t ${fmtT(model.t)} s  `));
-      line.appendChild(el("span", "sl-state", word));
+    if (line._text !== text) {
+      line._text = text;
+      let parts = line._parts;
+      if (!parts || parts[0].parentNode !== line) {
+        parts = line._parts = [el("span", "sl-mission"), document.createTextNode(""), el("span", "sl-state")];
+        line.textContent = "";
+        for (const n of parts) line.appendChild(n);
+      }
+      const mid = `  tick ${model.tick}  t ${fmtT(model.t)} s  `;
+      if (parts[0].textContent !== mission) parts[0].textContent = mission;
+      if (parts[1].data !== mid) parts[1].data = mid;
+      if (parts[2].textContent !== word) parts[2].textContent = word;
       line.title = text;
     }
-    line.dataset.state = state;
+    if (line.dataset.state !== state) line.dataset.state = state;
     const body = document.body.classList;
     body.toggle("is-paused", model.paused);
     body.toggle("is-estopped", model.estopped);
@@ -1121,17 +1169,19 @@
     setScalars(d);
     if (d.statuses) {
       for (const [path, st] of Object.entries(d.statuses)) {
+        if (model.statuses.get(path) === st) continue;
         model.statuses.set(path, st);
         dirty.statuses.add(path);
       }
     }
     if (d.states) {
       for (const [machine, state] of Object.entries(d.states)) {
+        if ((model.states.get(machine) || null) === (state || null)) continue; // no change
         if (state) model.states.set(machine, state);
         else model.states.delete(machine); // a machine that stopped
         dirty.machines.add(machine);
+        dirty.states = true;
       }
-      dirty.states = true;
     }
     if (d.blackboard) {
       for (const [key, entry] of Object.entries(d.blackboard)) {
@@ -1184,18 +1234,37 @@
   let rafId = 0;
   let timerId = 0;
 
+  let hiddenDirty = false;   // the model changed while the tab was hidden
+
   function schedule() {
     if (scheduled) return;
+    if (document.hidden) {
+      // a hidden tab draws nothing: the model keeps up (pending lists are capped, so memory
+      // stays flat) and one flush brings the DOM up to date when the tab is shown again
+      hiddenDirty = true;
+      return;
+    }
     scheduled = true;
     rafId = requestAnimationFrame(flush);
-    // rAF does not run in a hidden tab; keep the page current (and memory flat) anyway
+    // a fallback should rAF stall while the tab still counts as visible
     timerId = setTimeout(flush, 250);
   }
+
+  document.addEventListener("visibilitychange", () => {
+    if (!document.hidden && hiddenDirty) {
+      hiddenDirty = false;
+      schedule();
+    }
+  });
 
   function flush() {
     cancelAnimationFrame(rafId);
     clearTimeout(timerId);
     scheduled = false;
+    if (document.hidden) {
+      hiddenDirty = true;
+      return;
+    }
 
     if (dirty.all) {
       const [set, leaves] = computeActive();
@@ -2176,6 +2245,10 @@
     $("#tree").addEventListener("click", onTreeClick);
     $("#blackboard").addEventListener("click", onBlackboardClick);
     $("#timeline").addEventListener("click", onTimelineClick);
+    $("#timeline").addEventListener("scroll", (ev) => {
+      const tl = ev.currentTarget;
+      if (tl.clientHeight) tl._follow = atBottom(tl);
+    }, { passive: true });
     $("#timeline-filter").addEventListener("input", applyFilter);
     $("#history-close").addEventListener("click", () => {
       $("#history-box").hidden = true;
