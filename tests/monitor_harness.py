@@ -15,6 +15,7 @@ import httpx
 from missions.monitor.control import Control
 from missions.monitor.hub import Hub
 from missions.monitor.observer import MonitorObserver
+from missions.monitor.replay import load_run
 from missions.monitor.server import start_monitor
 from missions.runner import RunResult, run
 
@@ -98,4 +99,17 @@ def live_run(
         control.close()
         thread.join(300)
         live.http.close()
+        server.stop()
+
+
+@contextmanager
+def replayed_run(folder: Path, until: float = 60.0) -> Iterator[tuple[Path, str]]:
+    """The entertainer run to its end in ``folder``, then served as a finished run: (folder, URL)."""
+    with live_run(folder, until=until, paused=False) as live:
+        live.finish()
+    run = load_run(folder)
+    server = start_monitor(run.hub, port=0, run=run)
+    try:
+        yield folder, server.url
+    finally:
         server.stop()

@@ -15,7 +15,7 @@ from missions.monitor.replay import RunFolderError, load_run
 from missions.monitor.server import MonitorError, start_monitor, token_for
 from missions.replay import from_trace
 from missions.scenario import load_scenario, run_scenario
-from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, wait_until
+from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, replayed_run, wait_until
 
 PHOTO_MACHINE = "main/entertainer/interaction"
 
@@ -163,15 +163,9 @@ def test_listening_beyond_loopback_needs_a_token(monkeypatch) -> None:
 
 
 def test_a_finished_run_at_tick_n_is_what_botstage_tree_prints(tmp_path) -> None:
-    folder = tmp_path / "run"
-    with live_run(folder, until=60, paused=False) as live:
-        live.finish()
-    run = load_run(folder)
-    server = start_monitor(run.hub, port=0, run=run)
-    try:
-        import httpx
+    import httpx
 
-        http = httpx.Client(base_url=server.url)
+    with replayed_run(tmp_path / "run") as (folder, url), httpx.Client(base_url=url) as http:
         span = http.get("/api/range").json()
         assert span == {"first": 0, "last": read_jsonl(folder / "trace.jsonl")[-1]["tick"]}
         assert http.get("/api/info").json()["mode"] == "replay"
@@ -192,9 +186,6 @@ def test_a_finished_run_at_tick_n_is_what_botstage_tree_prints(tmp_path) -> None
             )
             assert printed.exit_code == 0, printed.output
             assert at["text"] == printed.output
-        http.close()
-    finally:
-        server.stop()
 
 
 def test_a_folder_that_is_not_a_run_is_refused(tmp_path) -> None:

@@ -15,9 +15,7 @@ from typer.testing import CliRunner
 
 from behaviors.trace import read_jsonl
 from missions.cli import app
-from missions.monitor.replay import load_run
-from missions.monitor.server import start_monitor
-from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, wait_until
+from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, replayed_run, wait_until
 from tests.tools import require
 
 WAIT_MS = 60_000
@@ -143,13 +141,8 @@ def test_the_display_page_shows_the_layouts_in_the_order_the_run_set_them(tmp_pa
 
 
 def test_a_finished_run_scrubbed_to_tick_n_shows_what_botstage_tree_prints(tmp_path, page) -> None:
-    folder = tmp_path / "run"
-    with live_run(folder, until=60, paused=False) as live:
-        live.finish()
-    run = load_run(folder)
-    server = start_monitor(run.hub, port=0, run=run)
-    try:
-        open_page(page, server.url + "/")
+    with replayed_run(tmp_path / "run") as (folder, url):
+        open_page(page, url + "/")
         page.wait_for_selector("#scrubber")
         assert page.locator("#estop").is_hidden() or page.locator("#pause").is_hidden()
         for tick in (141, 350):
@@ -159,8 +152,6 @@ def test_a_finished_run_scrubbed_to_tick_n_shows_what_botstage_tree_prints(tmp_p
                 app, ["tree", str(ENTERTAINER), "--trace", str(folder / "trace.jsonl"), "--at", str(tick)]
             )
             wait_until(lambda t=printed.output: page.inner_text("#tree-text").strip() == t.strip(), 30, f"tick {tick}")
-    finally:
-        server.stop()
 
 
 def test_a_teleop_key_moves_the_held_robot_and_its_release_stops_it(tmp_path, page) -> None:

@@ -228,34 +228,36 @@ class RetryOptions(KindOptions):
     num_attempts: Count = Field(description="attempts in all; -1 forever")
 
 
-class RetryUntilSuccessful(DecoratorKind):
-    name = "RetryUntilSuccessful"
-    description = "BT.CPP RetryUntilSuccessful: tick the child again after a failure, num_attempts in all"
-    Options = RetryOptions
+class _Loop(DecoratorKind):
+    """Retry and Repeat: tick the child again until it ends with ``until``, ``count`` times in all."""
+
+    count: str
+    until: Status
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
-        times = _required(b, "num_attempts")
-        return None if times is None else bt.Loop(b.name, b.child, times, until=Status.SUCCESS)
+        times = _required(b, self.count)
+        return None if times is None else bt.Loop(b.name, b.child, times, until=self.until)
 
     def title(self, node: py_trees.behaviour.Behaviour) -> str:
         return f"{self.name} ×{node.times}"
+
+
+class RetryUntilSuccessful(_Loop):
+    name = "RetryUntilSuccessful"
+    description = "BT.CPP RetryUntilSuccessful: tick the child again after a failure, num_attempts in all"
+    Options = RetryOptions
+    count, until = "num_attempts", Status.SUCCESS
 
 
 class RepeatOptions(KindOptions):
     num_cycles: Count = Field(description="successes in all; -1 forever")
 
 
-class Repeat(DecoratorKind):
+class Repeat(_Loop):
     name = "Repeat"
     description = "BT.CPP Repeat: tick the child again after a success, num_cycles in all; a failure ends it"
     Options = RepeatOptions
-
-    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
-        times = _required(b, "num_cycles")
-        return None if times is None else bt.Loop(b.name, b.child, times, until=Status.FAILURE)
-
-    def title(self, node: py_trees.behaviour.Behaviour) -> str:
-        return f"{self.name} ×{node.times}"
+    count, until = "num_cycles", Status.FAILURE
 
 
 class RunOnceOptions(KindOptions):
