@@ -230,3 +230,14 @@ class NodeAccess:
             self._bb._record("denied", rel, self.node)
             raise AccessError(f"node {self.node!r} may not write {rel!r}: it is not among its outputs")
         self._bb._write(self._client, rel, value, self.node)  # type: ignore[arg-type]
+
+    # -- BehaviorTree.CPP's UnsetBlackboard (behaviors/btcpp) removes a key --------------------
+
+    def unset(self, key: str) -> bool:
+        """Remove a key this node may write; False if it was not there."""
+        rel = normalise_key(key)
+        if rel not in self._writes:
+            self._bb._record("denied", rel, self.node)
+            raise AccessError(f"node {self.node!r} may not unset {rel!r}: it is not among its outputs")
+        self._bb._record("unset", rel, self.node)
+        return self._client.unset(rel)  # type: ignore[union-attr]

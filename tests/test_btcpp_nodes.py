@@ -346,3 +346,149 @@ def test_bad_ports_are_reported_where_written(engine: Any, spec: dict[str, Any],
     with pytest.raises(SpecError) as caught:
         engine.builder().tree(spec)
     assert message in str(caught.value)
+
+
+# -- scripts, Precondition, UnsetBlackboard and the pre/post-condition attributes ------------------
+# (tree_node.cpp's executeTick/checkPreConditions/checkPostConditions, precondition_node.h,
+# script_node.h, script_condition.h, unset_blackboard_node.h; SKIPPED is a SUCCESS with `skipped`)
+
+
+def pre_post(child: dict[str, Any], **scripts: str) -> dict[str, Any]:
+    return {"PrePostConditions": child, **{"_" + name: code for name, code in scripts.items()}}
+
+
+SCRIPTED: list[tuple[str, dict[str, Any], dict[str, Any], list[tuple[str, str]], dict[str, Any]]] = [
+    # (id, spec, blackboard before, per tick (status, log), blackboard after)
+    (
+        "script assigns, computes and joins strings",
+        {"Script": {"code": "n := 2; n += 3; msg := 'n=' .. n; big := n > 4 ? true : false"}},
+        {},
+        [("S", "")],
+        {"n": 5, "msg": "n=5", "big": 1},
+    ),
+    (
+        "script fails (with its reason) on `=` to a missing key",
+        {"Script": {"code": "missing = 1"}},
+        {},
+        [("F", "")],
+        {},
+    ),
+    ("script condition true", {"ScriptCondition": {"code": "a > 1 && a < 3"}}, {"a": 2}, [("S", "")], {"a": 2}),
+    ("script condition false", {"ScriptCondition": {"code": "a == 'x'"}}, {"a": "y"}, [("F", "")], {"a": "y"}),
+    ("unset blackboard", {"UnsetBlackboard": {"key": "gone"}}, {"gone": 1, "kept": 2}, [("S", "")], {"kept": 2}),
+    (
+        "precondition false returns FAILURE by default without ticking the child",
+        {"Sequence": [{"Script": {"code": "go = false"}, "name": "X"}, {"Precondition": leaf(A, "RRS"), "if_": "go"}]},
+        {"go": True},
+        [("F", ""), ("F", "")],
+        {"go": False},
+    ),
+    (
+        "precondition: a running child is not re-checked",
+        {"Precondition": leaf(A, "RRS"), "if_": "go"},
+        {"go": True},
+        [("R", "A"), ("R", "A"), ("S", "A")],
+        {"go": True},
+    ),
+    (
+        "precondition false returns else (SKIPPED: a success)",
+        {"Sequence": [{"Precondition": leaf(A, "F"), "if_": "go", "else": "SKIPPED"}, leaf(B, "S")]},
+        {"go": False},
+        [("S", "B")],
+        {},
+    ),
+    (
+        "_skipIf skips the node; a fallback moves past a skipped child as BT.CPP's does",
+        {"Fallback": [pre_post(leaf(A, "S"), skipIf="n > 1"), leaf(B, "F")]},
+        {"n": 2},
+        [("F", "B")],
+        {},
+    ),
+    (
+        "_failureIf and _successIf decide without ticking; _onFailure/_onSuccess and _post follow",
+        {
+            "Sequence": [
+                pre_post(leaf(A, "S"), successIf="n == 1", onSuccess="s := 1", post="p := 'a'"),
+                pre_post(leaf(B, "S"), failureIf="n == 1", onFailure="f := 1", post="p := p .. 'b'"),
+            ]
+        },
+        {"n": 1},
+        [("F", "")],
+        {"s": 1, "f": 1, "p": "ab"},
+    ),
+    (
+        "pre-conditions are checked only when the node is idle",
+        pre_post(leaf(A, "RRS"), failureIf="stop"),
+        {"stop": False},
+        [("R", "A"), ("R", "A"), ("S", "A")],
+        {},
+    ),
+    (
+        "_while false while running halts the node (SKIPPED) and runs _onHalted",
+        pre_post(leaf(A, "R"), **{"while": "n < 2", "onHalted": "halted := true", "post": "n += 1"}),
+        {"n": 0},
+        [("R", "A"), ("R", "A"), ("S", "A!")],
+        {"n": 3.0, "halted": 1},
+    ),
+    (
+        "_while false before the start skips the node",
+        {"Sequence": [pre_post(leaf(A, "F"), **{"while": "false"}), leaf(B, "S")]},
+        {},
+        [("S", "B")],
+        {},
+    ),
+    (
+        "keyed num_attempts, msec and delay_msec are read when the node starts",
+        {"Sequence": [{"RetryUntilSuccessful": leaf(A, "F"), "num_attempts": "{tries}"}]},
+        {"tries": "2"},
+        [("R", "A"), ("F", "A")],
+        {},
+    ),
+    (
+        "keyed Sleep",
+        {"Sleep": {"msec": "{ms}"}},
+        {"ms": 200},
+        [("R", ""), ("R", ""), ("S", "")],
+        {},
+    ),
+    (
+        "keyed Timeout",
+        {"Timeout": leaf(A, "R"), "msec": "{ms}"},
+        {"ms": 150},
+        [("R", "A"), ("R", "A"), ("F", "A!")],
+        {},
+    ),
+    (
+        "a keyed count that is not a number fails the node with its reason",
+        {"Repeat": leaf(A, "S"), "num_cycles": "{n}"},
+        {"n": "many"},
+        [("F", "")],
+        {},
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("spec", "before", "expected", "after"), [c[1:] for c in SCRIPTED], ids=[c[0] for c in SCRIPTED]
+)
+def test_scripted_node_ticks_as_in_btcpp(
+    engine: Any, spec: dict[str, Any], before: dict[str, Any], expected: list, after: dict[str, Any]
+) -> None:
+    engine.blackboard.update(before)
+    assert run(engine, spec, len(expected)) == expected
+    snapshot = engine.blackboard.snapshot()
+    assert {k: snapshot.get(k) for k in after} == after
+    if "UnsetBlackboard" in spec:
+        assert "gone" not in snapshot
+
+
+def test_halting_a_running_node_runs_on_halted(engine: Any) -> None:
+    spec = pre_post(leaf(A, "R"), onHalted="halts := 1", onSuccess="never := 1")
+    assert run(engine, spec, 2, halt_after=1) == [("R", "A"), ("halt", "A!"), ("R", "A")]
+    assert engine.blackboard.get("halts") == 1 and not engine.blackboard.exists("never")
+
+
+def test_a_failed_script_says_why(engine: Any) -> None:
+    engine.set_root(engine.builder().tree({"Script": {"code": "x = 1"}}))
+    assert engine.tick() is Status.FAILURE
+    assert "doesn't exist yet: use [:=]" in engine.root.feedback_message

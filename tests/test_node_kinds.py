@@ -43,6 +43,7 @@ BUILTIN = {
     *("ParallelAll", "IfThenElse", "WhileDoElse", "Switch2", "Switch3", "Switch4", "Switch5", "Switch6"),
     *("Inverter", "ForceSuccess", "ForceFailure", "KeepRunningUntilFailure", "RetryUntilSuccessful"),
     *("Repeat", "RunOnce", "Timeout", "Delay", "AlwaysSuccess", "AlwaysFailure", "Sleep", "SetBlackboard"),
+    *("Script", "ScriptCondition", "Precondition", "UnsetBlackboard", "PrePostConditions"),  # scripts (issue 22)
 }
 
 

@@ -11,7 +11,10 @@ imported from XML runs as it would under BT.CPP. Two translations hold throughou
   RUNNING after a child that completed within the tick (it was IDLE before it), instead of looping.
 
 Time is the run's clock (``runtime.clock``), never the wall clock. BT.CPP's SKIPPED status (from
-pre-conditions and ``RunOnce then_skip``) has no py_trees equivalent; see ``RunOnce``.
+pre-conditions, ``Precondition`` and ``RunOnce then_skip``) has no py_trees equivalent: a skipped
+node ends with SUCCESS and ``skipped`` set (``was_skipped``). BT.CPP's Sequence, Fallback and their
+reactive forms here treat it as BT.CPP does (move on, and SKIPPED themselves when every child
+was); any other parent sees the SUCCESS, which lets a sequence move on as BT.CPP's would.
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ import py_trees
 from py_trees.common import Status
 
 from behaviors.blackboard import BlackboardError
+from behaviors.btcpp.script import Script as CompiledScript
+from behaviors.btcpp.script import ScriptRuntimeError
+from behaviors.decorators import ClockTimeout
 
 if TYPE_CHECKING:
     from behaviors.blackboard import NodeAccess
@@ -36,6 +42,11 @@ def halt(node: Behaviour) -> None:
     """BT.CPP's haltChild: a running node is halted; one that is not running is already IDLE to us."""
     if node.status is Status.RUNNING:
         node.stop(Status.INVALID)
+
+
+def was_skipped(node: Behaviour) -> bool:
+    """Did the node end its last tick SKIPPED (BT.CPP's status, a SUCCESS to py_trees)?"""
+    return node.status is Status.SUCCESS and getattr(node, "skipped", False)
 
 
 def threshold(value: int, children: int) -> int:
@@ -81,6 +92,8 @@ class Sequence(_Control):
         self.carry_on = carry_on
         self.memory = memory
         self.index = 0
+        self.skipped_count = 0
+        self.skipped = False
 
     def _reset(self) -> None:
         if not self.memory:
@@ -88,11 +101,18 @@ class Sequence(_Control):
 
     def tick(self) -> Iterator[Behaviour]:
         count = len(self.children)
+        self.skipped = False
+        if self.status is not Status.RUNNING:
+            self.skipped_count = 0
         while self.index < count:
             child = self.current_child = self.children[self.index]
             before = child.status
             yield from child.tick()
             status = child.status
+            if was_skipped(child):
+                self.index += 1
+                self.skipped_count += 1
+                continue
             if status is Status.RUNNING:
                 yield from self._running()
                 return
@@ -111,7 +131,9 @@ class Sequence(_Control):
                 yield from self._running()  # the wake-up rule: one synchronous child per tick
                 return
         self.index = 0
-        yield from self._end(self.carry_on)
+        all_skipped = self.skipped_count == count
+        yield from self._end(Status.SUCCESS if all_skipped else self.carry_on)
+        self.skipped = all_skipped
 
 
 class Reactive(_Control):
@@ -121,11 +143,17 @@ class Reactive(_Control):
     def __init__(self, name: str, children: list[Behaviour], decisive: Status) -> None:
         super().__init__(name=name, children=list(children))
         self.decisive = decisive
+        self.skipped = False
 
     def tick(self) -> Iterator[Behaviour]:
+        self.skipped = False
+        skipped = 0
         for index, child in enumerate(self.children):
             self.current_child = child
             yield from child.tick()
+            if was_skipped(child):
+                skipped += 1
+                continue
             if child.status is Status.RUNNING:
                 for other, sibling in enumerate(self.children):
                     if other != index:
@@ -135,7 +163,9 @@ class Reactive(_Control):
             if child.status is self.decisive:
                 yield from self._end(self.decisive)
                 return
-        yield from self._end(Status.FAILURE if self.decisive is Status.SUCCESS else Status.SUCCESS)
+        all_skipped = skipped == len(self.children)
+        yield from self._end(Status.SUCCESS if all_skipped or self.decisive is Status.FAILURE else Status.FAILURE)
+        self.skipped = all_skipped
 
 
 class Parallel(_Control):
@@ -367,6 +397,10 @@ class _Decorator(py_trees.decorators.Decorator):
         self.status = Status.RUNNING
         yield self
 
+    def _fail(self, why: str) -> Iterator[Behaviour]:
+        self.feedback_message = why
+        yield from self._end(Status.FAILURE)
+
 
 class Loop(_Decorator):
     """RetryUntilSuccessful (``until`` SUCCESS: a failure is retried) and Repeat (``until``
@@ -375,20 +409,27 @@ class Loop(_Decorator):
     A child that completes after it was RUNNING is started again in the same tick; one that
     completes within its first tick makes the node return RUNNING (BT.CPP's wake-up rule)."""
 
-    def __init__(self, name: str, child: Behaviour, times: int, until: Status) -> None:
+    def __init__(self, name: str, child: Behaviour, times: Number, until: Status) -> None:
         super().__init__(name=name, child=child)
         self.times = times
         self.until = until
         self.count = 0
+        self.limit = 0
 
     def _reset(self) -> None:
         self.count = 0
 
     def _more(self) -> bool:
-        return self.count < self.times or self.times == -1
+        return self.count < self.limit or self.limit == -1
 
     def tick(self) -> Iterator[Behaviour]:
         child = self.decorated
+        if self.status is not Status.RUNNING:
+            try:
+                self.limit = self.times.read()
+            except (BlackboardError, ValueError) as exc:
+                yield from self._fail(str(exc))
+                return
         looping = self._more()
         while looping:
             before = child.status
@@ -418,10 +459,13 @@ class RunOnce(_Decorator):
         super().__init__(name=name, child=child)
         self.then_skip = then_skip
         self.result: Status | None = None
+        self.skipped = False
 
     def tick(self) -> Iterator[Behaviour]:
+        self.skipped = False
         if self.result is not None:
             self.stop(Status.SUCCESS if self.then_skip else self.result)
+            self.skipped = self.then_skip
             yield self
             return
         yield from self.decorated.tick()
@@ -437,9 +481,9 @@ class Delay(_Decorator):
     """RUNNING for ``seconds`` of run time from its first tick, then the child's status; a halt or
     the child's completion starts the wait again."""
 
-    def __init__(self, name: str, child: Behaviour, seconds: float, runtime: Runtime) -> None:
+    def __init__(self, name: str, child: Behaviour, msec: Number, runtime: Runtime) -> None:
         super().__init__(name=name, child=child)
-        self.seconds = seconds
+        self.msec = msec
         self.runtime = runtime
         self.ready_at: float | None = None
 
@@ -449,7 +493,12 @@ class Delay(_Decorator):
     def tick(self) -> Iterator[Behaviour]:
         now = self.runtime.clock.now()
         if self.ready_at is None:
-            self.ready_at = now + self.seconds - 1e-9
+            try:
+                seconds = self.msec.read(minimum=0) / 1000
+            except (BlackboardError, ValueError) as exc:
+                yield from self._fail(str(exc))
+                return
+            self.ready_at = now + seconds - 1e-9
             yield from self._running()  # the timer fires after this tick at the earliest
             return
         if now < self.ready_at:
@@ -492,16 +541,26 @@ class Sleep(Behaviour):
     """RUNNING until ``seconds`` of run time have passed since its first tick, then SUCCESS;
     0 succeeds at once."""
 
-    def __init__(self, name: str, seconds: float, runtime: Runtime) -> None:
+    def __init__(self, name: str, msec: Number, runtime: Runtime) -> None:
         super().__init__(name=name)
-        self.seconds = seconds
+        self.msec = msec
         self.runtime = runtime
+        self.seconds = 0.0
         self.until = 0.0
+        self.problem = ""
 
     def initialise(self) -> None:
+        self.problem = ""
+        try:
+            self.seconds = self.msec.read(minimum=0) / 1000
+        except (BlackboardError, ValueError) as exc:
+            self.problem = str(exc)
         self.until = self.runtime.clock.now() + self.seconds - 1e-9
 
     def update(self) -> Status:
+        if self.problem:
+            self.feedback_message = self.problem
+            return Status.FAILURE
         if self.seconds <= 0:
             return Status.SUCCESS
         if self.status is not Status.RUNNING:
@@ -528,3 +587,253 @@ class SetBlackboard(Behaviour):
             self.feedback_message = str(exc)
             return Status.FAILURE
         return Status.SUCCESS
+
+
+# -- values read when a node starts -----------------------------------------------------------
+
+
+class Number:
+    """A number port: a literal, or ``{key}`` read from the blackboard when the node starts
+    (BT.CPP reads such ports in ``tick()``/``onStart()``); a key's text is read as a number."""
+
+    __slots__ = ("access", "key", "value")
+
+    def __init__(self, value: int | BoundKey, access: NodeAccess | None = None) -> None:
+        self.value = value
+        self.key = value.key if isinstance(value, BoundKey) else None
+        self.access = access
+
+    def read(self, minimum: int = -1) -> int:
+        if self.key is None or self.access is None:
+            return int(self.value)  # type: ignore[arg-type]
+        raw = self.access.get(self.key)
+        try:
+            if isinstance(raw, bool):
+                raise ValueError
+            number = float(raw.strip()) if isinstance(raw, str) else float(raw)
+            if not number.is_integer() or number < minimum:
+                raise ValueError
+        except (TypeError, ValueError):
+            raise ValueError(f"{{{self.key}}} holds {raw!r}, not a whole number ≥ {minimum}") from None
+        return int(number)
+
+    def __str__(self) -> str:
+        return str(self.value) if self.key is None else "{" + self.key + "}"
+
+
+class KeyedTimeout(ClockTimeout):
+    """BT.CPP's Timeout whose ``msec`` is ``{key}``: read when the child starts."""
+
+    def __init__(self, name: str, child: Behaviour, msec: Number, runtime: Runtime) -> None:
+        super().__init__(name=name, child=child, duration=0.0, runtime=runtime)
+        self.msec = msec
+        self.problem = ""
+
+    def initialise(self) -> None:
+        self.problem = ""
+        try:
+            msec = self.msec.read(minimum=0)
+        except (BlackboardError, ValueError) as exc:
+            self.problem, msec = str(exc), 0
+        self.duration = msec / 1000 if msec else float("inf")  # 0: no timeout, as in BT.CPP
+        super().initialise()
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status is not Status.RUNNING:
+            self.initialise()
+            if self.problem:
+                self.feedback_message = self.problem
+                self.stop(Status.FAILURE)
+                yield self
+                return
+        yield from super().tick()
+
+
+# -- scripts ------------------------------------------------------------------------------------
+
+
+class BoundScript:
+    """A compiled script bound to the blackboard: its names mapped to (remapped) keys."""
+
+    __slots__ = ("access", "keys", "script")
+
+    def __init__(self, script: CompiledScript, keys: dict[str, str], access: NodeAccess) -> None:
+        self.script = script
+        self.keys = keys
+        self.access = access
+
+    @property
+    def source(self) -> str:
+        return self.script.source
+
+    def exists(self, name: str) -> bool:
+        return self.access.exists(self.keys[name])
+
+    def get(self, name: str) -> Any:
+        return self.access.get(self.keys[name])
+
+    def set(self, name: str, value: Any) -> None:
+        self.access.set(self.keys[name], value)
+
+    def run(self) -> Any:
+        return self.script.run(self)
+
+    def check(self) -> bool:
+        return self.script.check(self)
+
+
+SCRIPT_ERRORS = (ScriptRuntimeError, BlackboardError, ArithmeticError)
+
+
+class Script(Behaviour):
+    """BT.CPP's Script: run ``code``; SUCCESS. A script that fails to run is a FAILURE with its
+    reason (BT.CPP throws, which stops the whole tree)."""
+
+    def __init__(self, name: str, code: BoundScript) -> None:
+        super().__init__(name=name)
+        self.code = code
+
+    def update(self) -> Status:
+        try:
+            self.code.run()
+        except SCRIPT_ERRORS as exc:
+            self.feedback_message = f"script {self.code.source!r}: {exc}"
+            return Status.FAILURE
+        return Status.SUCCESS
+
+
+class ScriptCondition(Script):
+    """BT.CPP's ScriptCondition: SUCCESS if ``code`` is true, else FAILURE."""
+
+    def update(self) -> Status:
+        try:
+            return Status.SUCCESS if self.code.check() else Status.FAILURE
+        except SCRIPT_ERRORS as exc:
+            self.feedback_message = f"script {self.code.source!r}: {exc}"
+            return Status.FAILURE
+
+
+class UnsetBlackboard(Behaviour):
+    """BT.CPP's UnsetBlackboard: remove ``key``; SUCCESS whether or not it was there."""
+
+    def __init__(self, name: str, key: str, access: NodeAccess) -> None:
+        super().__init__(name=name)
+        self.key = key
+        self.access = access
+
+    def update(self) -> Status:
+        self.access.unset(self.key)
+        return Status.SUCCESS
+
+
+SKIPPED = "SKIPPED"  # BT.CPP's status, for the `else` of Precondition
+
+
+class Precondition(_Decorator):
+    """BT.CPP's Precondition: ``if`` is checked before the child starts; false returns ``else``
+    (FAILURE by default; SKIPPED is a skipped SUCCESS); once the child runs, it is not re-checked."""
+
+    def __init__(self, name: str, child: Behaviour, condition: BoundScript, otherwise: Status | str) -> None:
+        super().__init__(name=name, child=child)
+        self.condition = condition
+        self.otherwise = otherwise
+        self.skipped = False
+
+    def tick(self) -> Iterator[Behaviour]:
+        self.skipped = False
+        if self.decorated.status is not Status.RUNNING:
+            try:
+                go = self.condition.check()
+            except SCRIPT_ERRORS as exc:
+                yield from self._fail(f"if {self.condition.source!r}: {exc}")
+                return
+            if not go:
+                if self.otherwise is Status.RUNNING:
+                    yield from self._running()
+                    return
+                yield from self._end(Status.SUCCESS if self.otherwise == SKIPPED else self.otherwise)  # type: ignore[arg-type]
+                self.skipped = self.otherwise == SKIPPED
+                return
+        yield from self.decorated.tick()
+        if self.decorated.status is Status.RUNNING:
+            yield from self._running()
+            return
+        yield from self._end(self.decorated.status)
+
+
+class PrePost(_Decorator):
+    """The pre- and post-condition attributes BT.CPP allows on any node (``tree_node.cpp``),
+    around the node they were written on.
+
+    Before a tick, if the node is idle (not RUNNING): ``_failureIf`` true gives FAILURE,
+    ``_successIf`` true SUCCESS, ``_skipIf`` true or ``_while`` false SKIPPED, without ticking it
+    (checked in that order, BT.CPP's). While it runs, ``_while`` false halts it: SKIPPED. After
+    it: ``_onSuccess`` or ``_onFailure`` by its status, then ``_post`` (every tick). A halt of the
+    running node runs ``_onHalted``. SKIPPED is a SUCCESS with ``skipped`` set; the node stays idle."""
+
+    PRE = ("_failureIf", "_successIf", "_skipIf", "_while")
+
+    def __init__(self, name: str, child: Behaviour, scripts: dict[str, BoundScript]) -> None:
+        super().__init__(name=name, child=child)
+        self.scripts = scripts
+        self.skipped = False
+
+    def _pre(self) -> Status | str | None:
+        """The status a pre-condition decides, or None to tick the node."""
+        idle = self.decorated.status is not Status.RUNNING
+        for attr in self.PRE:
+            script = self.scripts.get(attr)
+            if script is None:
+                continue
+            if idle:
+                true = script.check()
+                if true and attr != "_while":
+                    return {"_failureIf": Status.FAILURE, "_successIf": Status.SUCCESS}.get(attr, SKIPPED)
+                if not true and attr == "_while":
+                    return SKIPPED
+            elif attr == "_while" and not script.check():
+                self._halt_node()
+                return SKIPPED
+        return None
+
+    def _halt_node(self) -> None:
+        if self.decorated.status is Status.RUNNING:
+            halt(self.decorated)
+            self._run("_onHalted")
+
+    def _run(self, attr: str) -> None:
+        script = self.scripts.get(attr)
+        if script is not None:
+            script.run()
+
+    def tick(self) -> Iterator[Behaviour]:
+        self.skipped = False
+        try:
+            decided = self._pre()
+        except SCRIPT_ERRORS as exc:
+            yield from self._fail(f"pre-condition: {exc}")
+            return
+        if decided is None:
+            yield from self.decorated.tick()
+            decided = self.decorated.status
+        try:
+            if decided is Status.SUCCESS:
+                self._run("_onSuccess")
+            elif decided is Status.FAILURE:
+                self._run("_onFailure")
+            self._run("_post")
+        except SCRIPT_ERRORS as exc:
+            yield from self._fail(f"post-condition: {exc}")
+            return
+        if decided is Status.RUNNING:
+            yield from self._running()
+            return
+        yield from self._end(Status.SUCCESS if decided == SKIPPED else decided)  # type: ignore[arg-type]
+        self.skipped = decided == SKIPPED
+
+    def terminate(self, new_status: Status) -> None:
+        if new_status is Status.INVALID and self.status is Status.RUNNING:
+            try:
+                self._halt_node()
+            except SCRIPT_ERRORS as exc:
+                self.feedback_message = f"_onHalted: {exc}"

@@ -6,27 +6,67 @@ value (``{Sleep: {msec: 500}}``). The XML importer (``behaviors.btcpp.to_spec``)
 this. Where an existing botstage node has BT.CPP's semantics it is reused (Inverter, ForceSuccess,
 ForceFailure, KeepRunningUntilFailure, the mission-clock Timeout); the rest are in
 ``behaviors.btcpp.behaviours``.
+
+Scripts (``behaviors.btcpp.script``) are compiled when the tree is built, their names bound to
+keys like ``{key}``: ``{Script: {code: "n := n + 1"}}``, ``{ScriptCondition: {code: ...}}``,
+``{Precondition: NODE, if_: "...", else: SKIPPED}`` (``if_``: ``if`` is botstage's own guard
+kind) and ``{PrePostConditions: NODE, _skipIf: "...", _post: "..."}``, which carries BT.CPP's
+pre/post-condition attributes of the node it wraps. Number ports (``num_attempts``, ``msec``,
+...) take ``{key}`` too, read when the node starts.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal
 
 import py_trees
 from py_trees.common import Status
-from pydantic import Field, create_model
+from pydantic import Field, PlainValidator, WithJsonSchema, create_model
 
 from behaviors.btcpp import behaviours as bt
+from behaviors.btcpp.script import ScriptError, compile_script
 from behaviors.decorators import ClockTimeout
 from behaviors.kinds import decorators as botstage
-from behaviors.kinds.base import CompositeKind, DecoratorKind, KindOptions, LeafKind, NodeBuild
+from behaviors.kinds.base import CompositeKind, DecoratorKind, Described, KindOptions, LeafKind, NodeBuild
 from behaviors.skill_behaviour import KeyRef
 from behaviors.skill_binding import parse_binding
 from behaviors.suggest import did_you_mean
 
-Count = Annotated[int, Field(ge=-1000, le=1_000_000)]
-Millis = Annotated[int, Field(ge=0, le=1_000_000_000)]
+
+class LiteralType:
+    """Annotation metadata: how the XML importer reads a literal written for this port (a port
+    typed ``int | str`` takes ``{key}`` as its str, so its literals are whole numbers)."""
+
+    def __init__(self, tp: Any) -> None:
+        self.literal_type = tp
+
+
+KEY_TEXT = re.compile(r"^\{@?[^{}]+\}$")
+
+
+def _number_or_key(low: int, high: int, what: str) -> Any:
+    """A number port that may name a key instead (``{key}``, read when the node starts), as BT.CPP allows."""
+
+    def check(value: Any) -> Any:
+        if isinstance(value, str) and KEY_TEXT.match(value):
+            return value
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"expected {what} or a {{key}}, got {value!r}")
+        if not low <= value <= high:
+            raise ValueError(f"must be from {low} to {high:,}, got {value}")
+        return value
+
+    schema = {
+        "anyOf": [{"type": "integer", "minimum": low, "maximum": high}, {"type": "string", "pattern": KEY_TEXT.pattern}]
+    }
+    return Annotated[int | str, PlainValidator(check), WithJsonSchema(schema), LiteralType(int)]
+
+
+Count = _number_or_key(-1000, 1_000_000, "a whole number")
+Threshold = Annotated[int, Field(ge=-1000, le=1_000_000)]  # Parallel's counts: literals only
+Millis = _number_or_key(0, 1_000_000_000, "a whole number of milliseconds")
 
 
 def _key_or_literal(b: NodeBuild, raw: Any, mode: str, *where: str | int) -> Any:
@@ -44,6 +84,46 @@ def _key_or_literal(b: NodeBuild, raw: Any, mode: str, *where: str | int) -> Any
 def _required(b: NodeBuild, port: str) -> Any:
     """A required port's value; None when it was missing or wrong (the builder has reported it)."""
     return getattr(b.options, port, None)
+
+
+def _number(b: NodeBuild, raw: Any, *where: str | int) -> bt.Number | None:
+    """A number port: the literal, or ``{key}`` read when the node starts."""
+    if raw is None:
+        return None
+    value = _key_or_literal(b, raw, "read", *where)
+    if value is None:
+        return None
+    if isinstance(value, bt.BoundKey):
+        return bt.Number(value, b.runtime.blackboard.client(b.path, reads=[value.key]))
+    return bt.Number(value)
+
+
+def bind_script(b: NodeBuild, source: Any, *where: str | int) -> bt.BoundScript | None:
+    """A BT.CPP script written at ``where``, compiled, its names bound to (remapped) keys and
+    recorded as read or written; None (and a problem) if it does not parse."""
+    label = ".".join(str(w) for w in where) or b.key
+    if not isinstance(source, str):
+        b.problem(f"{label}: expected a script (a string), got {type(source).__name__}", *where)
+        return None
+    try:
+        script = compile_script(source)
+    except ScriptError as exc:
+        b.problem(f"{label}: {exc.message} at column {exc.column} of {source!r}", *where)
+        return None
+    keys: dict[str, str] = {}
+    for name in sorted(script.keys):
+        key = b.builder.key(name.removeprefix("@"), b.spec_path + where, b.scope)
+        if key is None:
+            return None
+        keys[name] = key
+    for name in sorted(script.reads):
+        b.builder.use(keys[name], "read", b.spec_path + where, b.scope)
+    for name in sorted(script.writes):
+        b.builder.use(keys[name], "write", b.spec_path + where, b.scope)
+    access = b.runtime.blackboard.client(
+        b.path, reads=[keys[n] for n in script.reads], writes=[keys[n] for n in script.writes]
+    )
+    return bt.BoundScript(script, keys, access)
 
 
 # -- controls -------------------------------------------------------------------------------
@@ -91,8 +171,8 @@ class ReactiveFallback(ReactiveSequence):
 
 
 class ParallelOptions(KindOptions):
-    success_count: Count = Field(default=-1, description="successes needed; -1 all children, -2 all but one ...")
-    failure_count: Count = Field(default=1, description="failures that fail it; -1 all children ...")
+    success_count: Threshold = Field(default=-1, description="successes needed; -1 all children, -2 all but one ...")
+    failure_count: Threshold = Field(default=1, description="failures that fail it; -1 all children ...")
 
 
 class Parallel(CompositeKind):
@@ -115,7 +195,7 @@ class Parallel(CompositeKind):
 
 
 class ParallelAllOptions(KindOptions):
-    max_failures: Count = Field(default=1, description="failures that make it fail once all completed; -1 all")
+    max_failures: Threshold = Field(default=1, description="failures that make it fail once all completed; -1 all")
 
 
 class ParallelAll(CompositeKind):
@@ -235,7 +315,7 @@ class _Loop(DecoratorKind):
     until: Status
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
-        times = _required(b, self.count)
+        times = _number(b, _required(b, self.count), self.count)
         return None if times is None else bt.Loop(b.name, b.child, times, until=self.until)
 
     def title(self, node: py_trees.behaviour.Behaviour) -> str:
@@ -286,6 +366,9 @@ class Timeout(DecoratorKind):
         msec = _required(b, "msec")
         if msec is None:
             return None
+        if isinstance(msec, str):
+            number = _number(b, msec, "msec")
+            return None if number is None else bt.KeyedTimeout(b.name, b.child, number, b.runtime)
         if msec == 0:
             return bt.PassThrough(name=b.name, child=b.child)
         node = ClockTimeout(name=b.name, child=b.child, duration=msec / 1000, runtime=b.runtime)
@@ -303,8 +386,8 @@ class Delay(DecoratorKind):
     Options = DelayOptions
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
-        msec = _required(b, "delay_msec")
-        return None if msec is None else bt.Delay(b.name, b.child, msec / 1000, b.runtime)
+        msec = _number(b, _required(b, "delay_msec"), "delay_msec")
+        return None if msec is None else bt.Delay(b.name, b.child, msec, b.runtime)
 
 
 # -- leaves ---------------------------------------------------------------------------------
@@ -314,6 +397,7 @@ class _PortLeaf(LeafKind):
     """A leaf whose value is a mapping of its ports (``{Sleep: {msec: 500}}``)."""
 
     ports: ClassVar[dict[str, bool]] = {}  # port name -> required
+    port_types: ClassVar[dict[str, Any]] = {}  # port name -> the type a literal is read as (str if absent)
 
     def _ports(self, b: NodeBuild) -> Mapping[str, Any] | None:
         value = {} if b.value is None else b.value
@@ -357,19 +441,23 @@ class Sleep(_PortLeaf):
     name = "Sleep"
     description = "BT.CPP Sleep: RUNNING for msec of run time, then SUCCESS"
     ports = {"msec": True}
+    port_types = {"msec": Millis}
 
     def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
         ports = self._ports(b)
         if ports is None:
             return None
         msec = ports["msec"]
+        if isinstance(msec, str) and isinstance(parse_binding(msec), KeyRef):
+            number = _number(b, msec, self.name, "msec")
+            return None if number is None else bt.Sleep(b.name, number, b.runtime)
         if isinstance(msec, bool) or not isinstance(msec, int) or msec < 0:
             b.problem(f"msec of Sleep must be a whole number of milliseconds ≥ 0, got {msec!r}", self.name, "msec")
             return None
-        return bt.Sleep(b.name, msec / 1000, b.runtime)
+        return bt.Sleep(b.name, bt.Number(msec), b.runtime)
 
     def title(self, node: py_trees.behaviour.Behaviour) -> str:
-        return f"Sleep {node.seconds * 1000:g} ms"
+        return f"Sleep {node.msec} ms"
 
 
 class SetBlackboard(_PortLeaf):
@@ -397,6 +485,128 @@ class SetBlackboard(_PortLeaf):
         return f"SetBlackboard {node.output_key}"
 
 
+class Script(_PortLeaf):
+    name = "Script"
+    description = "BT.CPP Script: run `code` (BT.CPP's script language) on the blackboard; SUCCESS"
+    shape = "condition"
+    ports = {"code": True}
+
+    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
+        ports = self._ports(b)
+        code = None if ports is None else bind_script(b, ports["code"], self.name, "code")
+        return None if code is None else self.behaviour(b.name, code)
+
+    behaviour: ClassVar[type[bt.Script]] = bt.Script
+
+    def title(self, node: py_trees.behaviour.Behaviour) -> str:
+        source = node.code.source
+        return f"{self.name}: {source if len(source) <= 40 else source[:39] + '…'}"
+
+
+class ScriptCondition(Script):
+    name = "ScriptCondition"
+    description = "BT.CPP ScriptCondition: SUCCESS if `code` is true, else FAILURE"
+    behaviour = bt.ScriptCondition
+
+
+class UnsetBlackboard(_PortLeaf):
+    name = "UnsetBlackboard"
+    description = "BT.CPP UnsetBlackboard: remove `key` from the blackboard; SUCCESS"
+    shape = "condition"
+    ports = {"key": True}
+
+    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
+        ports = self._ports(b)
+        if ports is None:
+            return None
+        raw = parse_binding(ports["key"])
+        key = b.builder.key(raw.key if isinstance(raw, KeyRef) else raw, b.spec_path + (self.name, "key"), b.scope)
+        if key is None:
+            return None
+        b.builder.use(key, "write", b.spec_path + (self.name, "key"), b.scope)
+        return bt.UnsetBlackboard(b.name, key, b.runtime.blackboard.client(b.path, writes=[key]))
+
+    def title(self, node: py_trees.behaviour.Behaviour) -> str:
+        return f"UnsetBlackboard {node.key}"
+
+
+class _Aliased(DecoratorKind):
+    """A kind whose options are written under names Python cannot use (``if``, ``_skipIf``)."""
+
+    def option_names(self) -> set[str]:
+        return {field.alias or name for name, field in self.Options.model_fields.items()}
+
+
+ELSE = {"SUCCESS": Status.SUCCESS, "FAILURE": Status.FAILURE, "RUNNING": Status.RUNNING, "SKIPPED": bt.SKIPPED}
+
+
+class PreconditionOptions(KindOptions):
+    # written `if_`: `if` is botstage's own guard kind, and a node names exactly one kind
+    if_: str = Field(description="BT.CPP's `if`: a script; the child starts only if it is true")
+    else_: Literal["SUCCESS", "FAILURE", "RUNNING", "SKIPPED"] = Field(
+        default="FAILURE", alias="else", description="the status when `if` is false (SKIPPED: a skipped success)"
+    )
+
+
+class Precondition(_Aliased):
+    name = "Precondition"
+    description = "BT.CPP Precondition: tick the child if `if` holds when it starts, else return `else`"
+    Options = PreconditionOptions
+
+    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
+        source = _required(b, "if_")
+        condition = None if source is None else bind_script(b, source, "if_")
+        if condition is None:
+            return None
+        return bt.Precondition(b.name, b.child, condition, ELSE[b.options.else_])
+
+    def describe(self, node: py_trees.behaviour.Behaviour) -> Described:
+        return Described(f"Precondition if {node.condition.source}", self.shape)
+
+
+PRE_POST = ("_skipIf", "_failureIf", "_successIf", "_while", "_onSuccess", "_onFailure", "_onHalted", "_post")
+
+
+class PrePostOptions(KindOptions):
+    skip_if: str | None = Field(None, alias="_skipIf", description="skip the node (SKIPPED) if true when it starts")
+    failure_if: str | None = Field(None, alias="_failureIf", description="FAILURE without ticking, if true at start")
+    success_if: str | None = Field(None, alias="_successIf", description="SUCCESS without ticking, if true at start")
+    while_: str | None = Field(None, alias="_while", description="skip it if false at start, halt it if false later")
+    on_success: str | None = Field(None, alias="_onSuccess", description="a script run when it succeeds")
+    on_failure: str | None = Field(None, alias="_onFailure", description="a script run when it fails")
+    on_halted: str | None = Field(None, alias="_onHalted", description="a script run when it is halted")
+    post: str | None = Field(None, alias="_post", description="a script run after every tick of it")
+
+
+class PrePostConditions(_Aliased):
+    """BT.CPP's pre- and post-condition attributes of a node, as a decorator around that node
+    (the importer puts it there): pictures show the node under a box listing its scripts."""
+
+    name = "PrePostConditions"
+    description = "BT.CPP's _skipIf, _failureIf, _successIf, _while, _onSuccess, _onFailure, _onHalted, _post"
+    Options = PrePostOptions
+
+    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour | None:
+        scripts: dict[str, bt.BoundScript] = {}
+        ok = True
+        for field_name, field in PrePostOptions.model_fields.items():
+            source = getattr(b.options, field_name, None)
+            if source is None:
+                continue
+            script = bind_script(b, source, field.alias or field_name)
+            ok = ok and script is not None
+            if script is not None:
+                scripts[field.alias or field_name] = script
+        if not scripts and ok:
+            b.problem(f"{self.name} needs at least one of {', '.join(PRE_POST)}")
+            return None
+        return bt.PrePost(b.name, b.child, scripts) if ok else None
+
+    def describe(self, node: py_trees.behaviour.Behaviour) -> Described:
+        details = [f"{attr}: {node.scripts[attr].source}" for attr in PRE_POST if attr in node.scripts]
+        return Described("pre/post conditions", self.shape, details)
+
+
 __all__ = [
     "AlwaysFailure",
     "AlwaysSuccess",
@@ -409,11 +619,15 @@ __all__ = [
     "KeepRunningUntilFailure",
     "Parallel",
     "ParallelAll",
+    "PrePostConditions",
+    "Precondition",
     "ReactiveFallback",
     "ReactiveSequence",
     "Repeat",
     "RetryUntilSuccessful",
     "RunOnce",
+    "Script",
+    "ScriptCondition",
     "Sequence",
     "SequenceWithMemory",
     "SetBlackboard",
@@ -424,5 +638,6 @@ __all__ = [
     "Switch5",
     "Switch6",
     "Timeout",
+    "UnsetBlackboard",
     "WhileDoElse",
 ]

@@ -11,19 +11,31 @@ XML line and column of every node, so checking, running and pictures work on it 
   own; botstage has one, so each key a subtree uses that is not one of its ports (nor ``{@key}``,
   the root blackboard's) is remapped to a key private to that SubTree instance
   (``_<n>_<TreeID>/key``). ``_autoremap="true"`` shares them instead, ``port="{=}"`` shares one.
+  A literal for a SubTree port is that private key's initial value (``blackboard``), as BT.CPP
+  sets it into the subtree's blackboard when the tree is created.
+- Scripts (``Script``, ``ScriptCondition``, ``Precondition``'s ``if`` and the pre/post-condition
+  attributes ``_skipIf`` ... ``_post``) are parsed here, so a syntax error is located at its
+  attribute's line and column; their names are keys like ``{key}``. The attributes of a node
+  become a ``PrePostConditions`` decorator around it.
+- ``<include path>`` reads another file's trees (relative to the including file);
+  ``<TreeNodesModel>`` port types and defaults apply to the nodes it declares.
 """
 
 from __future__ import annotations
 
 import difflib
 import re
+import types
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal, get_args, get_origin
 
+from behaviors.btcpp.script import ScriptError, compile_script
 from behaviors.btcpp.xml_reader import Element, parse, parse_bytes
 from behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
 from behaviors.suggest import did_you_mean
+from robots import limits
 from robots.located_yaml import Loaded, Location, Locations, Problem, display_name
 from skills.base import plain_type
 from skills.registry import Registry
@@ -32,14 +44,18 @@ SpecPath = tuple[str | int, ...]
 NODE_MODELS = ("Action", "Condition", "Control", "Decorator")  # <Action ID="X"/>, BT.CPP v3's long form
 # attributes BT.CPP and Groot2 write on any node that are not ports
 IGNORED = frozenset({"_uid", "_fullpath", "_description"})
-CONDITIONS = frozenset(
-    {"_skipIf", "_failureIf", "_successIf", "_while", "_onSuccess", "_onFailure", "_onHalted", "_post"}
-)
-INT_PORTS = frozenset(
-    {"num_attempts", "num_cycles", "msec", "delay_msec", "success_count", "failure_count", "max_failures"}
-)
-BOOL_PORTS = frozenset({"then_skip"})
-KEY_PORTS = frozenset({("SetBlackboard", "output_key")})  # ports whose text is a key's name
+CONDITIONS = ("_skipIf", "_failureIf", "_successIf", "_while", "_onSuccess", "_onFailure", "_onHalted", "_post")
+WRAPPER = "PrePostConditions"  # the kind that carries a node's CONDITIONS (behaviors.btcpp.nodes)
+KEY_PORTS = frozenset({("SetBlackboard", "output_key"), ("UnsetBlackboard", "key")})  # text is a key's name
+SCRIPT_PORTS = frozenset({("Script", "code"), ("ScriptCondition", "code"), ("Precondition", "if")})
+RENAMED = {("Precondition", "if"): "if_"}  # `if` is botstage's guard kind: a node names exactly one kind
+# TreeNodesModel port types (C++ type names) and the Python type their literals are read as
+MODEL_TYPES: dict[str, Any] = {
+    **dict.fromkeys(["int", "unsigned", "unsigned int", "long", "int8_t", "int16_t", "int32_t", "int64_t"], int),
+    **dict.fromkeys(["uint8_t", "uint16_t", "uint32_t", "uint64_t", "size_t", "std::chrono::milliseconds"], int),
+    **dict.fromkeys(["double", "float"], float),
+    "bool": bool,
+}
 _REF = re.compile(r"^\{(@?)([^{}]*)\}$")
 
 
@@ -52,6 +68,15 @@ def btcpp_kinds(kinds: NodeKinds) -> list[str]:
 class _Tree:
     spec: Any = None
     keys: set[tuple[str, bool]] = field(default_factory=set)  # (key, written {@key}) used inside
+    types: dict[str, Any] = field(default_factory=dict)  # key -> the type of a typed port bound to it
+
+
+@dataclass
+class _Port:
+    """A port a TreeNodesModel declares: the type its literals are read as, its default's text."""
+
+    type: Any = str
+    default: str | None = None
 
 
 class Converter:
@@ -62,46 +87,28 @@ class Converter:
         self.registry = registry or Registry.default()
         self.kinds = kinds or NodeKinds.default()
         self.btcpp = set(btcpp_kinds(self.kinds))
+        # -- botstage-nav2 (issue 22): plug-in node sets (Nav2's) are usable from XML like BT.CPP's own
+        self.btcpp |= {name for name in self.kinds if self.kinds.origin(name) != "builtin"}
+        # -- end botstage-nav2
         self.problems: list[Problem] = []
         self.locations = Locations(root=Location(name, 1, 1))
         self.elements: dict[str, Element] = {}
         self.trees: dict[str, _Tree] = {}
         self.visiting: list[str] = []
         self.modelled: set[str] = set()  # IDs the TreeNodesModel declares
+        self.models: dict[str, dict[str, _Port]] = {}  # ID -> its declared input ports
         self.instances = 0
+        self.initial: dict[str, Any] = {}  # blackboard values: literals given to SubTree ports
+        self.files: list[Path] = []  # files read through <include>
 
     def problem(self, where: Location, message: str, hint: str = "") -> None:
         self.problems.append(Problem(where, message, hint))
 
     # -- the document ---------------------------------------------------------------------------
 
-    def document(self, root: Element) -> dict[str, Any] | None:
-        if root.tag != "root":
-            self.problem(root.where, f"a BehaviorTree.CPP file has <root> at the top, not <{root.tag}>")
+    def document(self, root: Element, path: Path | None = None) -> dict[str, Any] | None:
+        if not self.gather(root, path, ()):
             return None
-        version = root.attrs.get("BTCPP_format")
-        if version is not None and version != "4":
-            self.problem(
-                root.where,
-                f'BTCPP_format="{version}" is not supported: botstage reads version 4',
-                "BT.CPP's tool convert_v3_to_v4.py converts version 3 files",
-            )
-            return None
-        for element in root.children:
-            if element.tag == "BehaviorTree":
-                tree_id = element.attrs.get("ID")
-                if not tree_id:
-                    self.problem(element.where, "<BehaviorTree> needs an ID")
-                elif tree_id in self.elements:
-                    self.problem(element.where, f"duplicate BehaviorTree ID {tree_id!r}")
-                else:
-                    self.elements[tree_id] = element
-            elif element.tag == "TreeNodesModel":
-                self.modelled |= {m.attrs.get("ID", "") for m in element.children}
-            elif element.tag == "include":
-                self.problem(element.where, "<include> is not supported yet: put the trees in one file")
-            else:
-                self.problem(element.where, f"unexpected <{element.tag}> in <root>", "expected BehaviorTree")
         main = root.attrs.get("main_tree_to_execute")
         if main is not None and main not in self.elements:
             self.problem(root.where, f"main_tree_to_execute: no tree {main!r}", did_you_mean(main, self.elements))
@@ -114,17 +121,100 @@ class Converter:
             )
         elif main is None and self.elements:
             main = next(iter(self.elements))
-        if not self.elements:
+        # -- botstage-nav2 (issue 22): a file of only a TreeNodesModel (nav2_tree_nodes.xml) is a
+        # library of node models, not a tree: it imports with no trees (behaviors/nav2/models.py checks it)
+        if not self.elements and not self.modelled:
             self.problem(root.where, "no <BehaviorTree> in the file")
+        # -- end botstage-nav2
         for tree_id in self.elements:
             self.tree(tree_id, self.elements[tree_id].where)
         trees = {tree_id: self.trees[tree_id].spec for tree_id in self.elements if self.trees[tree_id].spec is not None}
         self.locations.by_path[("trees",)] = root.where
         data: dict[str, Any] = {"trees": trees}
+        if self.initial:
+            data["blackboard"] = dict(self.initial)
+            self.locations.by_path[("blackboard",)] = root.where
         if main is not None:
             data["root"] = main
             self.locations.by_path[("root",)] = root.where
         return data
+
+    def gather(self, root: Element, path: Path | None, stack: tuple[Path, ...]) -> bool:
+        """The trees, models and includes of one file (the main one or an included one)."""
+        if root.tag != "root":
+            self.problem(root.where, f"a BehaviorTree.CPP file has <root> at the top, not <{root.tag}>")
+            return False
+        version = root.attrs.get("BTCPP_format")
+        if version is not None and version != "4":
+            self.problem(
+                root.where,
+                f'BTCPP_format="{version}" is not supported: botstage reads version 4',
+                "BT.CPP's tool convert_v3_to_v4.py converts version 3 files",
+            )
+            return False
+        if path is not None:
+            stack = (*stack, path.resolve())
+        for element in root.children:
+            if element.tag == "BehaviorTree":
+                tree_id = element.attrs.get("ID")
+                if not tree_id:
+                    self.problem(element.where, "<BehaviorTree> needs an ID")
+                elif tree_id in self.elements:
+                    self.problem(element.where, f"duplicate BehaviorTree ID {tree_id!r}")
+                else:
+                    self.elements[tree_id] = element
+            elif element.tag == "TreeNodesModel":
+                self.model(element)
+            elif element.tag == "include":
+                self.include(element, path, stack)
+            else:
+                self.problem(element.where, f"unexpected <{element.tag}> in <root>", "expected BehaviorTree")
+        return True
+
+    def include(self, element: Element, path: Path | None, stack: tuple[Path, ...]) -> None:
+        """BT.CPP's ``<include path="...">``: another file's trees, the path relative to this file."""
+        if "ros_pkg" in element.attrs:
+            self.problem(
+                element.where,
+                "<include ros_pkg=...> looks in a ROS package, which botstage cannot",
+                "give a path relative to this file",
+            )
+            return
+        relative = element.attrs.get("path", "").strip()
+        if not relative:
+            self.problem(element.where, '<include> needs a path="..." (relative to this file)')
+            return
+        target = ((path.parent if path is not None else Path()) / relative).resolve()
+        if target in stack:
+            chain = " -> ".join(display_name(p) for p in (*stack[stack.index(target) :], target))
+            self.problem(element.where, f"include cycle: {chain}")
+            return
+        if not target.is_file():
+            self.problem(element.where, f"included file {relative!r} not found (looked for {display_name(target)})")
+            return
+        if target in self.files:
+            return  # included again along another path: its trees are here already
+        if len(self.files) >= limits.MAX_INCLUDED_FILES:
+            self.problem(element.where, f"more than {limits.MAX_INCLUDED_FILES} included files")
+            return
+        self.files.append(target)
+        problems: list[Problem] = []
+        root = parse(target, problems)
+        self.problems.extend(problems)
+        if root is not None:
+            self.gather(root, target, stack)
+
+    def model(self, element: Element) -> None:
+        """A TreeNodesModel: the IDs it declares, and their input ports' types and defaults."""
+        for node in element.children:
+            node_id = node.attrs.get("ID", "")
+            self.modelled.add(node_id)
+            ports = self.models.setdefault(node_id, {})
+            for port in node.children:
+                name = port.attrs.get("name")
+                if port.tag in ("input_port", "inout_port") and name:
+                    tp = MODEL_TYPES.get(port.attrs.get("type", "").strip(), str)
+                    ports[name] = _Port(tp, port.attrs.get("default"))
 
     def tree(self, tree_id: str, used_at: Location) -> _Tree | None:
         """The converted tree (converted once), or None if it enters itself again."""
@@ -159,14 +249,32 @@ class Converter:
             if not node_id:
                 self.problem(element.where, f"<{element.tag}> needs an ID")
                 return None
-            if element.tag == "SubTree":
-                return self.subtree(element, node_id, attrs, path, tree)
+        conditions: dict[str, str] = {}
         for attr in list(attrs):
             if attr in IGNORED:
                 del attrs[attr]
             elif attr in CONDITIONS:
-                self.problem(element.where, f"{attr} (BT.CPP's pre/post conditions) is not supported yet")
+                conditions[attr] = attrs.pop(attr)
+        if conditions:
+            ok = all([self.script(element, attr, code, tree) for attr, code in conditions.items()])
+            inner = self.plain_node(element, node_id, attrs, path + (WRAPPER,), tree)
+            if inner is None or not ok:
                 return None
+            for attr in conditions:
+                self.locations.by_path[path + (attr,)] = element.value_at(attr)
+            return {WRAPPER: inner, **{attr: conditions[attr] for attr in CONDITIONS if attr in conditions}}
+        return self.plain_node(element, node_id, attrs, path, tree)
+
+    def plain_node(
+        self, element: Element, node_id: str, attrs: dict[str, str], path: SpecPath, tree: _Tree
+    ) -> dict[str, Any] | None:
+        """A node without its pre/post-condition attributes."""
+        self.locations.by_path[path] = element.where
+        if element.tag == "SubTree" and "ID" in element.attrs:
+            return self.subtree(element, node_id, attrs, path, tree)
+        for port, declared in self.models.get(node_id, {}).items():
+            if port not in attrs and declared.default is not None:
+                attrs[port] = declared.default  # BT.CPP: a port left out takes the model's default
         spec: dict[str, Any] = {}
         name = attrs.pop("name", None)
         if name and "/" not in name:
@@ -179,6 +287,18 @@ class Converter:
             self.unknown(element, node_id, path, tree)
             return None
         return None if built is None else {**built, **spec}
+
+    def script(self, element: Element, attr: str, code: str, tree: _Tree) -> bool:
+        """Parse a script written in ``attr`` (a syntax error located at its column) and record
+        its keys as used; False if it does not parse."""
+        try:
+            script = compile_script(code)
+        except ScriptError as exc:
+            self.problem(element.value_at(attr, exc.column - 1), f"{attr}: {exc.message}", f"in {code!r}")
+            return False
+        for name in script.keys:
+            tree.keys.add((name.removeprefix("@"), name.startswith("@")))
+        return True
 
     def unknown(self, element: Element, node_id: str, path: SpecPath, tree: _Tree) -> None:
         """Report an unknown ID, and go on below it: every unknown node of the file is reported."""
@@ -196,11 +316,12 @@ class Converter:
         kind = self.kinds.get(node_id)
         ports: dict[str, Any] = {}
         for port, text in attrs.items():
-            value = self.port_value(element, node_id, port, text, tree)
+            value = self.port_value(element, node_id, kind, port, text, tree)
             if value is _BAD:
                 return None
-            ports[port] = value
-            self.locations.by_path[path + (port,)] = element.where
+            written = RENAMED.get((node_id, port), port)
+            ports[written] = value
+            self.locations.by_path[path + (written,)] = element.value_at(port)
         children = element.children
         if isinstance(kind, CompositeKind):
             if not children:
@@ -219,36 +340,55 @@ class Converter:
         if children:
             self.problem(element.where, f"{node_id} is a leaf: it has no children")
             return None
-        for port in ports:
-            self.locations.by_path[path + (node_id, port)] = element.where
+        for port in attrs:
+            self.locations.by_path[path + (node_id, RENAMED.get((node_id, port), port))] = element.value_at(port)
         return {node_id: ports}
 
-    def port_value(self, element: Element, node_id: str, port: str, text: str, tree: _Tree) -> Any:
-        """A built-in node's port: a number or boolean where BT.CPP's port is one, else the text
-        (``{key}`` stays a reference, recorded as used)."""
+    def port_type(self, node_id: str, kind: Any, port: str) -> tuple[Any, bool]:
+        """The type a port's literal is read as, and whether ``{key}`` may be written there.
+
+        The kind's own declaration comes first (a leaf's ``port_types``, else its Options field of
+        that name or alias), then the TreeNodesModel's, else text: plug-in node sets (Nav2's) are
+        read the same way as BT.CPP's own."""
+        declared: Any = getattr(kind, "port_types", {}).get(port)
+        if declared is None:
+            for name, info in kind.Options.model_fields.items():
+                if port in (name, info.alias):
+                    # pydantic keeps an Annotated field's metadata beside its annotation
+                    declared = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+                    break
+        if declared is None or declared is Any:
+            model = self.models.get(node_id, {}).get(port)
+            return (model.type if model is not None else str), True
+        return literal_type(declared), takes_text(declared)
+
+    def port_value(self, element: Element, node_id: str, kind: Any, port: str, text: str, tree: _Tree) -> Any:
+        """A built-in node's port: a literal read as the port's type, or ``{key}`` (recorded as
+        used) where the port takes one."""
+        literal, keyed = self.port_type(node_id, kind, port)
         ref = _REF.match(text.strip())
         if ref is not None:
-            if port in INT_PORTS or port in BOOL_PORTS:
-                self.problem(element.where, f"{node_id}.{port}: a blackboard reference here is not supported yet")
+            if not keyed:
+                self.problem(
+                    element.value_at(port),
+                    f"{node_id}.{port}: BT.CPP's {node_id} takes no blackboard reference here",
+                    f"write a {_type_name(literal)}",
+                )
                 return _BAD
             key = port if ref.group(2) == "=" else ref.group(2).strip()
             tree.keys.add((key, bool(ref.group(1))))
+            if literal is not str:
+                tree.types.setdefault(key, literal)
             return "{" + key + "}"
         if (node_id, port) in KEY_PORTS:
             tree.keys.add((text.strip(), False))  # a key's name, written without braces
-        if port in INT_PORTS:
-            try:
-                return int(text.strip())
-            except ValueError:
-                self.problem(element.where, f"{node_id}.{port}: expected a whole number, got {text!r}")
-                return _BAD
-        if port in BOOL_PORTS:
-            value = _bool(text)
-            if value is None:
-                self.problem(element.where, f"{node_id}.{port}: expected true or false, got {text!r}")
-                return _BAD
-            return value
-        return text
+        if (node_id, port) in SCRIPT_PORTS:
+            return text if self.script(element, port, text, tree) else _BAD
+        value = convert(literal, text)
+        if value is _BAD:
+            wanted = {int: "a whole number", float: "a number", bool: "true or false"}.get(literal, _type_name(literal))
+            self.problem(element.value_at(port), f"{node_id}.{port}: expected {wanted}, got {text!r}")
+        return value
 
     def skill(
         self, element: Element, skill_name: str, attrs: dict[str, str], path: SpecPath, tree: _Tree
@@ -276,6 +416,7 @@ class Converter:
             elif port in cls.inputs:
                 if key is not None:
                     inputs[port] = "{" + key + "}"
+                    tree.types.setdefault(key, cls.inputs[port].type)
                 else:
                     value = convert(cls.inputs[port].type, text)
                     if value is _BAD:
@@ -321,19 +462,27 @@ class Converter:
             if attr in IGNORED:
                 del attrs[attr]
         remap: dict[str, str] = {}
+        literals: dict[str, Any] = {}
         for port, text in attrs.items():
             ref = _REF.match(text.strip())
             if ref is None:
-                self.problem(
-                    element.where,
-                    f"SubTree port {port}={text!r}: a literal value for a subtree port is not supported yet",
-                    "set it with SetBlackboard before the SubTree",
-                )
-                return None
+                # BT.CPP sets a literal into the subtree's own blackboard when the tree is created:
+                # here, the initial value of the key private to this SubTree instance
+                tp = inner.types.get(port, str)
+                value = convert(tp, text)
+                if value is _BAD:
+                    wanted = _type_name(tp)
+                    self.problem(element.value_at(port), f"SubTree port {port}: cannot read {text!r} as {wanted}")
+                    return None
+                literals[port] = value
+                continue
             outer = port if ref.group(2) == "=" else ref.group(2).strip()
             tree.keys.add((outer, bool(ref.group(1))))
             remap[port] = outer
         roots = {key for key, root in inner.keys if root}
+        for port, value in literals.items():
+            remap[port] = f"_{self.instances}_{_identifier(tree_id)}/{port}"
+            self.initial[remap[port]] = value
         for key, root in sorted(inner.keys):
             if root or key in remap:
                 continue
@@ -362,6 +511,41 @@ class _Bad:
 
 
 _BAD: Any = _Bad()
+
+
+def _metadata(tp: Any) -> tuple[Any, ...]:
+    return tuple(get_args(tp)[1:]) if get_origin(tp) is Annotated else ()
+
+
+def _members(tp: Any) -> tuple[Any, ...]:
+    """The types of a union (``int | str``, ``Optional[float]``), without None; else the type."""
+    tp = plain_type(tp)
+    if get_origin(tp) in (typing.Union, types.UnionType):
+        return tuple(plain_type(a) for a in get_args(tp) if a is not type(None))
+    return (tp,)
+
+
+def literal_type(tp: Any) -> Any:
+    """How an attribute's text for a port of type ``tp`` is read: a ``literal_type`` the port's
+    annotation names (``behaviors.btcpp.nodes.LiteralType``), else the type; a union with
+    ``str`` or ``Literal[...]`` is text, a union of numbers a float."""
+    for meta in _metadata(tp):
+        if hasattr(meta, "literal_type"):
+            return meta.literal_type
+    members = _members(tp)
+    if len(members) == 1:
+        member = members[0]
+        return str if member is Any or get_origin(member) is Literal else member
+    if str in members or Any in members:
+        return str
+    return float if all(m in (int, float) for m in members) else str
+
+
+def takes_text(tp: Any) -> bool:
+    """Does a port of this type take text, hence a ``{key}`` (whose value is read when it runs)?"""
+    if any(hasattr(meta, "literal_type") for meta in _metadata(tp)):
+        return True
+    return any(m is str or m is Any or get_origin(m) is Literal for m in _members(tp))
 
 
 def _bool(text: str | None) -> bool | None:
@@ -429,11 +613,15 @@ def _loaded(
     registry: Registry | None,
     kinds: NodeKinds | None,
 ) -> Loaded:
-    converter = Converter(name, registry, kinds)
+    # -- botstage-export (issue 22): the converter also reads what behaviors/btcpp/export.py writes
+    from behaviors.btcpp.machines import ExportedConverter
+
+    converter = ExportedConverter(name, registry, kinds)
+    # -- end botstage-export
     data = None
     if root is not None:
-        data = converter.document(root)
+        data = converter.document(root, path)
     problems.extend(converter.problems)
     if data is not None:
         data = {"name": path.stem, **data}
-    return Loaded(None if problems else data, converter.locations, problems, [path])
+    return Loaded(None if problems else data, converter.locations, problems, [path, *converter.files])

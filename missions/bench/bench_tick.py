@@ -5,6 +5,8 @@ Prints one JSON object per line:
   (trace recorded in memory, status changes tracked) against the same tree of plain py_trees
   Behaviours ticked by ``py_trees.trees.BehaviourTree``; once with leaves that succeed at once
   (every leaf starts and ends a skill each tick) and once with leaves that stay RUNNING.
+- ``nav2_navigate_to_pose``: µs per tick of Nav2's NavigateToPose tree imported from its XML
+  (``../shared/nav2``) against the same tree in YAML, the PeopleBot driving in the museum.
 - ``machine``: per-trigger cost of a 3-level hierarchical machine whose states run trivial
   skills through the engine, against the same HierarchicalMachine driven with raw triggers.
 
@@ -17,9 +19,11 @@ import gc
 import json
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import py_trees
+import yaml
 from transitions.extensions.nesting import HierarchicalMachine
 
 from behaviors.engine import Engine
@@ -254,6 +258,63 @@ def bench_timeouts(ticks: int, repeats: int) -> dict[str, Any]:
     }
 
 
+# -- Nav2's NavigateToPose tree (issue 22): imported from Nav2's XML, against the same tree in YAML --
+
+NAV2_XML = Path(__file__).resolve().parents[3] / "shared" / "nav2" / "navigate_to_pose_w_replanning_and_recovery.xml"
+NAV2_YAML = Path(__file__).with_name("nav2_navigate_to_pose.yaml")
+
+
+def _nav2_drive(trees: dict[str, Any], root: str, ticks: int) -> float:
+    """Seconds per engine tick (the world's step not counted) of ``ticks`` ticks of the PeopleBot
+    driving from the museum's entrance to exhibit_a under the tree: planning at 1 Hz, following."""
+    from behaviors.nav2.navigator import ERROR_CODE_PREFIXES
+    from missions.bench.navsim import NavSim
+
+    sim = NavSim("museum", "peoplebot", "entrance", seed=3)
+    engine = Engine(clock=sim.clock, interfaces={**sim.sim.devices, **sim.services.interfaces})
+    engine.set_root(engine.builder(trees=trees).named_tree(root))
+    engine.blackboard.update({"goal": "exhibit_a", **{f"{p}_error_code": 0 for p in ERROR_CODE_PREFIXES}})
+    spent = 0.0
+    for _ in range(ticks):
+        start = time.perf_counter()
+        engine.tick()
+        spent += time.perf_counter() - start
+        sim.step()
+    engine.close()
+    return spent / ticks
+
+
+def bench_nav2(ticks: int, repeats: int) -> dict[str, Any]:
+    """Nav2's NavigateToPose tree as Nav2 ships it (BT.CPP XML, imported) against the same tree
+    written in botstage's YAML (missions/bench/nav2_navigate_to_pose.yaml), µs per tick on a robot."""
+    from behaviors.btcpp.to_spec import load_xml
+
+    row: dict[str, Any] = {"bench": "nav2_navigate_to_pose", "ticks_per_repeat": ticks, "repeats": repeats}
+    if not NAV2_XML.exists():
+        return {**row, "skipped": f"{NAV2_XML} is not beside this checkout"}
+    loaded = load_xml(NAV2_XML)
+    if loaded.data is None:
+        return {**row, "skipped": "; ".join(str(p) for p in loaded.problems)}
+    native = yaml.safe_load(NAV2_YAML.read_text(encoding="utf-8"))
+    nodes = sum(1 for _ in Engine().builder(trees=native["trees"]).named_tree(native["root"]).iterate())
+    xml_s, yaml_s = _best_pair(
+        lambda: _nav2_drive(loaded.data["trees"], loaded.data["root"], ticks),
+        lambda: _nav2_drive(native["trees"], native["root"], ticks),
+        repeats,
+    )
+    return {
+        **row,
+        "nodes": nodes,
+        "xml_us_per_tick": round(xml_s * 1e6, 1),
+        "yaml_us_per_tick": round(yaml_s * 1e6, 1),
+        "ratio": round(xml_s / yaml_s, 3),
+        "target": TARGET,
+    }
+
+
+# -- end Nav2
+
+
 def missed(results: list[dict[str, Any]]) -> list[str]:
     """The benches whose engine cost over the baseline is above its target."""
     return [r["bench"] for r in results if r.get("ratio", 0) > r.get("target", float("inf"))]
@@ -266,6 +327,7 @@ def main(quick: bool = False) -> list[dict[str, Any]]:
         bench_tree("running", ticks, repeats),
         bench_machine(triggers, repeats),
         bench_timeouts(10_000, 3 if quick else 5),
+        bench_nav2(60 if quick else 300, 1 if quick else 5),  # Nav2's tree (issue 22)
     ]
     for result in results:
         print(json.dumps(result), flush=True)

@@ -41,13 +41,36 @@ def import_(
     console.print(f"wrote {output}", highlight=False, soft_wrap=True)
 
 
-def runner_for(robot: str | None, world: str | None) -> Callable[..., Any]:
+# -- initial blackboard values (issue 22): `run --set goal=exhibit_a`, so Nav2's unmodified XML runs --
+
+
+def blackboard_values(assignments: list[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` options as initial blackboard values, each VALUE read as YAML
+    (``exhibit_a`` a string, ``[2.0, 3.5]`` a list, ``4`` a number); a bad one is a usage error."""
+    import yaml
+
+    values: dict[str, Any] = {}
+    for text in assignments:
+        key, sep, raw = text.partition("=")
+        if not sep or not key.strip():
+            raise _fail(f"error: --set {text!r}: expected KEY=VALUE, e.g. --set goal=exhibit_a", 2)
+        try:
+            values[key.strip()] = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError as exc:
+            raise _fail(f"error: --set {text!r}: the value is not YAML: {exc}", 2) from None
+    return values
+
+
+# -- end initial blackboard values
+
+
+def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | None = None) -> Callable[..., Any]:
     """How `run` runs a mission file: as it is, or, with ``--robot``/``--world`` (a tree file
-    names neither), as a mission with them set: checked first (problems at the file's lines),
-    then written to the run folder as mission.yaml and run from there."""
+    names neither) or ``--set`` values, as a mission with them set: checked first (problems at
+    the file's lines), then written to the run folder as mission.yaml and run from there."""
     from missions.runner import run
 
-    if robot is None and world is None:
+    if robot is None and world is None and not values:
         return run
 
     from missions.api.mission import Mission
@@ -68,6 +91,8 @@ def runner_for(robot: str | None, world: str | None) -> Callable[..., Any]:
             mission.robot = str(profile_path(robot, Path.cwd()) if robot not in known_profiles() else robot)
         if world is not None:
             mission.world = str(map_path(world, Path.cwd()) if world not in known_maps() else world)
+        if values:
+            mission.blackboard = {**mission.blackboard, **values}  # --set (issue 22)
         return mission.run(**options)
 
     return run_placed
@@ -77,3 +102,61 @@ def warn_unplaced(path: Path, robot: str | None, world: str | None) -> None:
     """A tree file run without a robot runs its tree alone, on no robot: say so."""
     if path.suffix.lower() == ".xml" and robot is None:
         _stderr([f"note: {path} names no robot; add --robot PROFILE --world MAP to drive one"])
+
+
+# -- export: `botstage export MISSION.yaml -f btcpp`, `botstage export RUN_FOLDER -f btlog` ----------
+
+EXPORT_FORMATS = ("btcpp", "btlog")
+
+
+def export(
+    source: Path = typer.Argument(..., help="a mission (-f btcpp) or a run folder, runs/<mission>-<time>/ (-f btlog)"),
+    fmt: str = typer.Option(
+        ..., "-f", "--format", help="btcpp: BehaviorTree.CPP v4 XML for Groot2; btlog: Groot2's replay file of a run"
+    ),
+    output: Path | None = typer.Option(
+        None, "-o", "--output", help="the file to write (btcpp default: standard output; btlog: RUN_FOLDER.btlog)"
+    ),
+) -> None:
+    """Write a mission as BehaviorTree.CPP v4 XML (Groot2 opens it; `botstage run` and `import` read
+    it back), or a finished run as Groot2's .btlog replay file; errors as file:line:col, exit 1."""
+    if fmt not in EXPORT_FORMATS:
+        raise _fail(f"error: --format {fmt!r}: expected one of {', '.join(EXPORT_FORMATS)}", 2)
+    if fmt == "btlog":
+        _export_btlog(source, output)
+        return
+    from behaviors.btcpp.export import ExportError, export_loaded
+    from missions.check import check
+
+    if source.is_dir():
+        raise _fail(f"error: {source} is a folder: -f btcpp exports a mission file (-f btlog a run folder)", 2)
+    checked = check(source)  # nothing half-valid is written: the mission is checked as `run` would
+    if not checked.ok:
+        raise _fail([str(problem) for problem in checked.problems])
+    try:
+        text = export_loaded(checked.loaded)
+    except ExportError as exc:
+        raise _fail([str(problem) for problem in exc.problems]) from None
+    if output is None:
+        sys.stdout.write(text)
+        return
+    try:
+        output.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise _fail(f"error: {os_problem(exc)}") from None
+    console.print(f"wrote {output}", highlight=False, soft_wrap=True)
+
+
+def _export_btlog(folder: Path, output: Path | None) -> None:
+    from missions.groot2.btlog import BtlogError, write_btlog
+
+    if not folder.is_dir():
+        raise _fail(f"error: {folder} is not a run folder: -f btlog exports a finished run (runs/<mission>-<time>/)", 2)
+    target = output if output is not None else folder.with_name(folder.resolve().name + ".btlog")
+    try:
+        written = write_btlog(folder, target)
+    except BtlogError as exc:
+        raise _fail(f"error: {exc}") from None
+    except OSError as exc:
+        raise _fail(f"error: {os_problem(exc)}") from None
+    console.print(f"wrote {written}", highlight=False, soft_wrap=True)

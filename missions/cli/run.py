@@ -6,6 +6,7 @@ import contextlib
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 from rich.live import Live
@@ -28,6 +29,9 @@ from missions.cli.common import (
 from missions.cli.monitor import HOST_HELP, live_monitor
 from robots.backend_registry import DEFAULT
 from robots.limits import MAX_SECONDS
+
+if TYPE_CHECKING:
+    from missions.groot2.publisher import Groot2Publisher
 
 UNTIL = number(gt=0, le=MAX_SECONDS)  # as `until:` in a mission file
 
@@ -84,6 +88,34 @@ def _live_progress(live: Live):
     return show
 
 
+# -- Groot2 (missions/groot2) ------------------------------------------------------------------
+
+GROOT2_HOST_HELP = "address Groot2 connects to (default 127.0.0.1; ZMQ has no authentication: see the README)"
+_LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def _groot2(host: str, port: int) -> Groot2Publisher:
+    """The Groot2 publisher for `run --groot2`, listening before the run starts."""
+    from missions.groot2.publisher import Groot2Error, Groot2Publisher
+
+    if host not in _LOOPBACK:
+        _stderr(
+            [
+                f"warning: Groot2 listens on {host}: its protocol has no authentication, so anyone who can reach "
+                f"ports {port} and {port + 1} can watch the run, hold it at breakpoints and change what nodes return"
+            ]
+        )
+    try:
+        publisher = Groot2Publisher(port, host)
+    except Groot2Error as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    console.print(f"groot2: {host}:{port} (notifications on {port + 1})", highlight=False, soft_wrap=True)
+    return publisher
+
+
+# -- end Groot2
+
+
 def run(
     mission: Path = typer.Argument(
         DEFAULT_MISSION, help="mission YAML or BehaviorTree.CPP v4 XML (default: the PeopleBot entertainer)"
@@ -109,6 +141,16 @@ def run(
     monitor_port: int = typer.Option(8470, help="the monitor's port (0: a free one)", min=0, max=65535),
     monitor_host: str = typer.Option("127.0.0.1", help=HOST_HELP),
     paused: bool = typer.Option(False, "--paused", help="with --monitor: hold the run before its first tick"),
+    # -- Groot2 (missions/groot2) --
+    groot2: bool = typer.Option(False, "--groot2", help="let Groot2 attach: its ZMQ protocol while the mission runs"),
+    groot2_port: int = typer.Option(1667, help="Groot2's port (its notifications on the next one)", min=1, max=65534),
+    groot2_host: str = typer.Option("127.0.0.1", help=GROOT2_HOST_HELP),
+    # -- end Groot2
+    # -- initial blackboard values (issue 22: Nav2's trees read `goal`) --
+    set_values: list[str] = typer.Option(
+        [], "--set", metavar="KEY=VALUE", help="an initial blackboard value, VALUE read as YAML (repeatable)"
+    ),
+    # -- end initial blackboard values
 ) -> None:
     """Run a mission and write its run folder (trace.jsonl, summary.json, report.html).
 
@@ -118,10 +160,10 @@ def run(
     Exit status: 0 success or time limit, 1 nothing ran (invalid mission, a file), 2 usage,
     3 the mission ended in failure, 4 the run stopped on an error, 130 interrupted.
     """
-    from missions.cli.btcpp import runner_for, warn_unplaced
+    from missions.cli.btcpp import blackboard_values, runner_for, warn_unplaced  # blackboard_values: --set
     from missions.runner import MissionInvalid, RunError
 
-    run_mission = runner_for(robot, world)
+    run_mission = runner_for(robot, world, blackboard_values(set_values))
     warn_unplaced(mission, robot, world)
 
     given = {
@@ -137,8 +179,11 @@ def run(
     if paused and not monitor:
         raise _fail("error: --paused holds the run for the monitor: add --monitor", 2)
     watching = live_monitor(monitor_host, monitor_port, paused) if monitor else contextlib.nullcontext()
+    groot = _groot2(groot2_host, groot2_port) if groot2 else None  # Groot2 (missions/groot2)
     try:
-        with watching as observer:
+        with watching as observer, contextlib.closing(groot) if groot else contextlib.nullcontext():
+            if groot is not None:
+                given["observers"] = [*given["observers"], groot]
             if observer is not None:
                 given["observers"] = [*given["observers"], observer]
             if quiet or not console.is_terminal:

@@ -94,6 +94,7 @@ def drive_to(
         timeout = max(params.min_timeout, params.time_per_metre * plan.length)
     deadline = start_time + timeout
     follower = PathFollower(plan.points, heading, follower_params)
+    stack.path = plan.points  # what the robot drives now, for viewers (the monitor's map)
     blocked_since: float | None = None  # this stop
     stuck_since: float | None = None  # the first stop since the robot last made headway
     stuck_travelled = 0.0
@@ -144,7 +145,9 @@ def drive_to(
                     watch.commanded(command.v, command.w)
                 if params.replan_every and now - planned_at >= params.replan_every:
                     try:
-                        follower = PathFollower(stack.plan((pose.x, pose.y), (gx, gy)).points, heading, follower_params)
+                        points = stack.plan((pose.x, pose.y), (gx, gy)).points
+                        follower = PathFollower(points, heading, follower_params)
+                        stack.path = points
                         planned_at = now
                     except Unreachable:
                         pass  # keep the path it has; the follower stops if it becomes blocked
@@ -169,6 +172,7 @@ def drive_to(
                 else:
                     replans += 1
                     follower = PathFollower(plan.points, heading, follower_params)
+                    stack.path = plan.points
                     blocked_since = None
                     planned_at = now
                     if log is not None:
@@ -177,4 +181,5 @@ def drive_to(
                 return result("blocked", f"{command.reason}; no headway for {now - stuck_since:.0f} s")
             yield
     finally:
+        stack.path = None
         drive.stop()

@@ -138,6 +138,9 @@ class NavStack:
         self.recent_s = recent_s
         self._recent: deque[tuple[float, np.ndarray]] = deque()  # (time, world points near the robot)
         self.plans = 0
+        # -- the monitor's map (issue 21): the path being driven now, start to goal (None: none);
+        # set and cleared by whoever follows it (navigator.drive_to), read by viewers
+        self.path: list[tuple[float, float]] | None = None
 
     @classmethod
     def for_robot(
@@ -317,6 +320,13 @@ class NavStack:
     def clear(self) -> None:
         """Forget every obstacle seen (the `clear_costmap` recovery)."""
         self._seen_at[:] = -np.inf
+
+    # -- botstage-nav2 (issue 22): Nav2's ClearCostmapExceptRegion, AroundRobot, AroundPose ---
+    def forget(self, cells: np.ndarray) -> None:
+        """Forget what was seen in ``cells`` (a mask of the map's shape)."""
+        self._seen_at[cells] = -np.inf
+
+    # -- end botstage-nav2 ------------------------------------------------------------------
 
     def seen(self) -> np.ndarray:
         """Cells that hold an obstacle seen within the memory."""
