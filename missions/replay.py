@@ -22,6 +22,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
 from behaviors.blackboard import BlackboardError, normalise_key
+from missions.steering import ESTOP, TELEOP_ENDED, TeleopStretch, read_teleop_note
 from skills.base import MISSING, Skill, check_type
 from skills.registry import Registry
 
@@ -29,7 +30,8 @@ from skills.registry import Registry
 # a replay, unless the recorded run was a scenario that mocked them.
 BOOKKEEPING = frozenset({"check", "count", "log", "set", "wait", "wait_for"})
 # Writers of blackboard writes that come from outside the mission (a scenario's events): replayed as events.
-EXTERNAL_WRITERS = frozenset({"scenario", "mission", "monitor"})  # monitor: an operator
+OPERATOR = "monitor"  # the node (and writer) of an operator's actions in the trace
+EXTERNAL_WRITERS = frozenset({"scenario", "mission", OPERATOR})
 # How a run that the operator stopped is replayed: up to the tick it was stopped at.
 INTERRUPTED = "interrupted"
 
@@ -52,6 +54,7 @@ class _Recording:
     events: list[dict[str, Any]] = field(default_factory=list)
     entered: list[tuple[str, str]] = field(default_factory=list)
     written: set[str] = field(default_factory=set)  # every key the run wrote, whoever wrote it
+    teleop: TeleopStretch | None = None  # a stretch of driving by hand under way
 
 
 class RunSummary(BaseModel):
@@ -204,6 +207,26 @@ def _take(
         _cancelled(running.pop(event["node"]), key_types)
     elif kind == "transition" and event["dest"]:
         recording.entered.append((event["machine"], event["dest"]))
+    elif kind == "log" and event["node"] == OPERATOR:
+        _steered(event, recording)
+
+
+def _steered(event: dict[str, Any], recording: _Recording) -> None:
+    """The operator's e-stop and driving by hand (``missions/steering.py``) as scenario events."""
+    message, t = event["message"], event["t"]
+    command = read_teleop_note(message)
+    if message == ESTOP:
+        recording.events.append({"t": t, "estop": True})
+    elif command is not None and recording.teleop is None:
+        recording.teleop = TeleopStretch.begin(t, *command)
+    elif command is not None and recording.teleop is not None:
+        recording.teleop.change(t, *command)
+    elif message == TELEOP_ENDED and recording.teleop is not None:
+        stretch, recording.teleop = recording.teleop, None
+        stretch.end(t)
+        if stretch.commands:
+            drives = [{"v": v, "w": w, "seconds": seconds} for v, w, seconds in stretch.commands]
+            recording.events.append({"t": stretch.start, "teleop": drives})
 
 
 def _ended(call: _Open, event: dict[str, Any], key_types: dict[str, Any]) -> None:

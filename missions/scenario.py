@@ -20,6 +20,8 @@ A scenario file (YAML, usually `missions/scenarios/<mission>/<name>.yaml`)::
     events:
       - {t: 12, set: {estop: true}}
       - {t: 40, gallery: down}       # the run's own gallery goes down (and `up` brings it back)
+      - {t: 50, estop: true}         # an operator's e-stop (the mission restarts from its root)
+      - {t: 60, teleop: [{v: 0.2, w: 0, seconds: 1.5}]}   # driven by hand, the tree held meanwhile
     expect:
       outcome: stopped
       states: [greeting, working/patrol, stopped]       # exact
@@ -42,7 +44,7 @@ from __future__ import annotations
 
 import difflib
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -50,7 +52,6 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from behaviors.blackboard import MissingKeyError
-from behaviors.engine import Engine
 from behaviors.suggest import did_you_mean
 from missions.gallery.service import set_gallery
 from missions.loader import Loaded, Location, Problem, load
@@ -59,6 +60,8 @@ from missions.replay import from_trace
 from missions.runner import MissionInvalid, RunError, StopRun, run
 from missions.scenario_check import MissionFacts, check_against_mission, mission_facts
 from missions.session.observers import EventRecorder
+from missions.session.session import RunSession
+from missions.steering import drive_one_step, stop_everything
 from skills.base import Skill
 from skills.expression import EvaluationError, compile_expression
 from skills.registry import Registry
@@ -78,12 +81,25 @@ __all__ = [
 ]
 
 
+class Drive(BaseModel):
+    """A command held while driving by hand (the run's tree held meanwhile)."""
+
+    model_config = ConfigDict(extra="forbid")
+    v: float
+    w: float
+    seconds: float = Field(gt=0, description="mission seconds the command is held")
+
+
 class Event(BaseModel):
     model_config = ConfigDict(extra="forbid")
     t: float = Field(ge=0, description="sim seconds")
     set: dict[str, Any] = Field(default_factory=dict)
     gallery: Literal["down", "up"] | None = Field(
         default=None, description="take the run's own gallery down, or bring it back on the same port"
+    )
+    estop: bool = Field(default=False, description="an operator's e-stop: every skill cancelled, the drive stopped")
+    teleop: list[Drive] = Field(
+        default_factory=list, description="an operator drives the robot by hand, the tree held meanwhile"
     )
 
 
@@ -249,6 +265,26 @@ class Result:
         return "\n".join(lines)
 
 
+class _BeforeTick:
+    """The scenario's events and `never` conditions, before every tick (may raise StopRun)."""
+
+    name = "scenario events"
+
+    def __init__(self, hook: Callable[[RunSession], None]) -> None:
+        self.before_tick = hook
+
+
+def _drive_by_hand(session: RunSession, drives: list[Drive]) -> None:
+    """As the operator drove: each command for its seconds, a tick period a step, then stopped."""
+    period = session.clock.period
+    for drive in drives:
+        for _ in range(max(1, round(drive.seconds / period))):
+            drive_one_step(session, drive.v, drive.w)
+    hands = session.interfaces.get("drive")
+    if hands is not None:
+        hands.stop()
+
+
 def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None) -> Result:
     if scenario.problems or scenario.spec is None:
         return Result(scenario, False, [str(p) for p in scenario.problems])
@@ -268,7 +304,9 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
     never = [compile_expression(c) for c in spec.expect.never]
     pending = sorted(spec.events, key=lambda e: e.t)
 
-    def before_tick(engine: Engine) -> None:
+    def before_tick(session: RunSession) -> None:
+        engine = session.engine
+        assert engine is not None
         now = engine.clock.now()
         while pending and pending[0].t <= now + 1e-9:
             event = pending.pop(0)
@@ -276,6 +314,10 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
                 engine.blackboard.set(key, value, writer="scenario")
             if event.gallery is not None:
                 set_gallery(engine.interfaces["uploads"], up=event.gallery == "up")
+            if event.estop:
+                stop_everything(session)
+            if event.teleop:
+                _drive_by_hand(session, event.teleop)
         for condition in never:
             try:
                 held = condition.test(engine.blackboard.get)
@@ -298,8 +340,7 @@ def run_scenario(scenario: Scenario, out: Path, registry: Registry | None = None
             out=out,
             registry=mocked,
             blackboard=spec.blackboard,
-            before_tick=before_tick,
-            observers=[recorder, _ScenarioBlock(scenario.path, names)],
+            observers=[_BeforeTick(before_tick), recorder, _ScenarioBlock(scenario.path, names)],
         )
     except MissionInvalid as exc:
         return Result(scenario, False, ["the mission is invalid:", *(str(p) for p in exc.problems)])

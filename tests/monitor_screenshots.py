@@ -8,10 +8,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from playwright.sync_api import sync_playwright
+from playwright.sync_api import Page, sync_playwright
 
-from missions.monitor.replay import load_run
-from missions.monitor.server import start_monitor
+from missions.monitor.replay import RecordedRun, load_run
+from missions.monitor.server import create_app, start_monitor, start_overview
+from missions.monitor.sources import Source, remote_source
 from tests.monitor_harness import LISTENING, ROOT, live_run
 
 OUT = ROOT / "missions" / "monitor" / "screenshots"
@@ -55,9 +56,34 @@ def main() -> None:
             page.goto("about:blank")
         finally:
             server.stop()
+        overview(page, Path(tmp), run)
         browser.close()
     for shot in sorted(OUT.glob("*.png")):
         print(shot.relative_to(ROOT), shot.stat().st_size, "bytes")
+
+
+def overview(page: Page, tmp: Path, finished: RecordedRun) -> None:
+    """Two live runs (one under way, one held before it starts) and a finished one on one page."""
+    with live_run(tmp / "a", until=120) as first, live_run(tmp / "b", until=120) as second:
+        first.act(action="resume")
+        first.until(lambda s: s["tick"] >= 300 and any("approach" in e["text"] for e in s["timeline"]), "under way")
+        first.act(action="pause")
+        sources = [
+            remote_source(first.url, [], None, name="entertainer-1"),
+            remote_source(second.url, [], None, name="entertainer-2"),
+            Source("entertainer-finished", "finished", create_app(finished.hub, run=finished), "runs/…/"),
+        ]
+        server = start_overview(sources, port=0, title="three runs")
+        try:
+            page.goto(server.url + "/")
+            page.wait_for_selector("article.card[data-source='entertainer-finished'] [data-role=tick]")
+            page.wait_for_timeout(700)  # every card polled at least once
+            page.screenshot(path=str(OUT / "overview.png"))
+            page.goto("about:blank")
+        finally:
+            server.stop()
+        first.finish()
+        second.finish()
 
 
 if __name__ == "__main__":

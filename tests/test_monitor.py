@@ -255,7 +255,8 @@ def test_teleop_drives_the_held_robot_and_stops_it_on_release_and_by_its_watchdo
         assert refused.status_code == 409 and "paused" in refused.json()["detail"]
         live.finish()
     said = [e["message"] for e in read_jsonl(folder / "trace.jsonl") if e["ev"] == "log" and e["node"] == "monitor"]
-    assert said.count("teleop from the monitor") == 2 and said.count("teleop ended") == 2
+    driven = [m for m in said if m.startswith("teleop v=")]  # each command the page gave, as it changed
+    assert driven[0] == "teleop v=0.4 w=0" and "teleop v=0 w=0.6" in driven and said.count("teleop ended") == 2
 
 
 def test_the_map_is_served_as_map_server_draws_it(tmp_path) -> None:
@@ -271,6 +272,83 @@ def test_the_map_is_served_as_map_server_draws_it(tmp_path) -> None:
         assert set(np.unique(image)) <= {0, 205, 254}
         live.act(action="resume")
         live.finish()
+
+
+WANDERING = "main/entertainer/wandering"
+
+
+def _off_path(point: list[float], path: list[list[float]]) -> float:
+    """How far ``point`` is from the polyline ``path`` (m)."""
+    import itertools
+
+    import numpy as np
+
+    p = np.asarray(point[:2], dtype=float)
+    best = float("inf")
+    for a, b in itertools.pairwise(path):
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        along = float(np.clip(np.dot(p - a, b - a) / max(float(np.dot(b - a, b - a)), 1e-12), 0.0, 1.0))
+        best = min(best, float(np.linalg.norm(p - (a + along * (b - a)))))
+    return best
+
+
+def test_the_map_shows_the_path_the_robot_drives_until_its_drive_ends(tmp_path) -> None:
+    """The robot view carries the navigation stack's current plan: it starts where the robot
+    stood when it planned, the robot then drives along it, and it goes when the drive is cancelled."""
+    with live_run(tmp_path / "run", until=60) as live:
+        live.until(lambda s: s["paused"], "held")
+        assert live.snapshot()["robot"]["path"] == []  # nothing planned before the first tick
+        assert live.act(action="break", kind="state", target=WANDERING).status_code == 200
+        assert live.act(action="resume").status_code == 200
+        hit = live.until(lambda s: s["paused"] and "breakpoint" in s["pause_reason"], "the wander starting")
+        robot = hit["robot"]
+        path = robot["path"]
+        assert len(path) >= 2, path
+        start = robot["estimate"]  # the stack plans from the localiser's estimate
+        assert abs(path[0][0] - start[0]) < 0.05 and abs(path[0][1] - start[1]) < 0.05, (path[0], start)
+        assert live.act(action="unbreak", id=1).status_code == 200
+        for _ in range(15):  # 1.5 s of driving, one tick at a time
+            version = live.snapshot()["version"]
+            assert live.act(action="step").status_code == 200
+            stepped = live.paused_after(version, "a step")
+        moved = stepped["robot"]
+        assert moved["path"][-1] == path[-1]  # the same goal
+        assert abs(moved["pose"][0] - robot["pose"][0]) + abs(moved["pose"][1] - robot["pose"][1]) > 0.2
+        assert _off_path(moved["pose"], moved["path"]) < 0.3  # the follower cuts corners a little
+        assert live.act(action="estop").status_code == 200  # cancels the wander: its drive ends
+        stopped = live.until(lambda s: s["estopped"], "the e-stop")
+        assert stopped["robot"]["path"] == []
+        live.finish()
+
+
+def test_a_finished_run_shows_the_robot_where_it_was_at_each_tick_and_the_monitor_leaves_the_trace_as_it_was(
+    tmp_path,
+) -> None:
+    """The monitor records poses.csv beside the trace without changing the trace (byte for byte
+    against the same run without it); a replay serves the map and the poses at the scrubbed tick;
+    a run made without the monitor replays with the simulation's true path."""
+    import httpx
+
+    from missions.monitor.robot_view import read_poses
+    from missions.runner import run
+
+    bare = tmp_path / "bare"
+    run(ENTERTAINER, out=bare, until=60)
+    with replayed_run(tmp_path / "run") as (folder, url), httpx.Client(base_url=url) as http:
+        assert (folder / "trace.jsonl").read_bytes() == (bare / "trace.jsonl").read_bytes()
+        rows = read_poses(folder / "poses.csv")
+        assert [tick for tick, _, _ in rows] == list(range(0, 600, 2))  # every 0.2 s of mission time
+        assert http.get("/api/info").json()["map"] is True
+        assert {"hall_centre", "exhibit_c"} <= set(http.get("/api/map").json()["places"])
+        for tick in (0, 141, 400):
+            recorded = next(row for row in reversed(rows) if row[0] <= tick)
+            robot = http.get("/api/at", params={"tick": tick}).json()["robot"]
+            assert (robot["pose"], robot["estimate"]) == (recorded[1], recorded[2])
+            assert abs(robot["pose"][0] - robot["estimate"][0]) + abs(robot["pose"][1] - robot["estimate"][1]) < 0.1
+        assert robot != http.get("/api/at", params={"tick": 0}).json()["robot"]  # it moved
+    without = load_run(bare).at(400)["robot"]  # no poses.csv: the true path, no estimate
+    assert without["estimate"] is None
+    assert abs(without["pose"][0] - robot["pose"][0]) + abs(without["pose"][1] - robot["pose"][1]) < 0.1
 
 
 def test_botstage_up_serves_the_monitor_from_the_missions_process(tmp_path) -> None:
@@ -296,20 +374,29 @@ def test_botstage_up_serves_the_monitor_from_the_missions_process(tmp_path) -> N
         stderr=subprocess.STDOUT,
     )
     try:
+        # the page on the port is the deployment's overview; the mission's monitor is under it
+        mission = f"http://127.0.0.1:{port}/s/navigation_computer"
 
         def ticking() -> dict | None:
             try:
-                snapshot = httpx.get(f"http://127.0.0.1:{port}/api/snapshot", timeout=5).json()
+                answer = httpx.get(f"{mission}/api/snapshot", timeout=5)
             except httpx.HTTPError:
                 return None
-            return snapshot if snapshot["tick"] >= 50 else None
+            snapshot = answer.json() if answer.status_code == 200 else None
+            return snapshot if snapshot is not None and snapshot["tick"] >= 50 else None
 
         seen = wait_until(ticking, 240, "the distributed run on the monitor")
         assert seen["states"]["main/entertainer"].startswith("main/entertainer/")
-        info = httpx.get(f"http://127.0.0.1:{port}/api/info", timeout=5).json()
+        info = httpx.get(f"{mission}/api/info", timeout=5).json()
         assert (info["mission"], info["simulated"]) == ("peoplebot_entertainer", True)
+        processes = httpx.get(f"http://127.0.0.1:{port}/api/processes", timeout=5).json()
+        assert {p["name"]: p["state"] for p in processes} == dict.fromkeys(
+            ["robot_computer", "navigation_computer", "kinect_speech_computer", "upload_computer", "display_computer"],
+            "running",
+        )
+        assert "detect_crowd" in next(p for p in processes if p["name"] == "kinect_speech_computer")["skills"]
         output, _ = up.communicate(timeout=300)
     finally:
         up.kill()
     assert up.returncode == 0, output[-3000:]
-    assert f"monitor: http://127.0.0.1:{port}/" in output
+    assert f"monitor: http://127.0.0.1:{port}/  (the mission: http://127.0.0.1:{port}/s/navigation_computer/)" in output

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
+import httpx
 import pytest
 from playwright import sync_api as playwright
 from typer.testing import CliRunner
@@ -152,6 +153,15 @@ def test_a_finished_run_scrubbed_to_tick_n_shows_what_botstage_tree_prints(tmp_p
                 app, ["tree", str(ENTERTAINER), "--trace", str(folder / "trace.jsonl"), "--at", str(tick)]
             )
             wait_until(lambda t=printed.output: page.inner_text("#tree-text").strip() == t.strip(), 30, f"tick {tick}")
+            # the map follows the scrubber: the robot where the run recorded it at that tick
+            pose = httpx.get(f"{url}/api/at", params={"tick": tick}).json()["robot"]["pose"]
+            page.wait_for_function(
+                """(want) => {
+                  const shown = (document.querySelector("#map").dataset.pose || "").split(",").map(Number);
+                  return shown.length === 3 && shown.every((v, i) => Math.abs(v - want[i]) < 0.0011);
+                }""",
+                arg=pose,
+            )
 
 
 def test_a_teleop_key_moves_the_held_robot_and_its_release_stops_it(tmp_path, page) -> None:

@@ -17,8 +17,9 @@ counted their ticks.
   each way, the variants interleaved (each one first in turn), 3 repeats each (quick: 1), the
   browser running throughout. Target: best with a page / best without <= 1.1; the best because
   the machine may be shared and another job only ever slows a run down (the medians, the CPU
-  time of this process and of the browser's, and the load average before are reported too: a
-  page costs this process little, but on a small machine the browser takes cores from the run).
+  time of this process, of the monitor's server thread and of the browser's, and the load average
+  before are reported too: a page costs this process little, but on a small machine the browser
+  takes cores from the run; the CPU seconds do not depend on what else the machine runs).
 - **latency**: the entertainer paced at 10 Hz wall time (``realtime``) for 60 s of ticks (quick:
   15 s) with the page open. A second ``EventSource`` on ``/api/events?since=V&stamps=1`` in the
   page gets, for every status in every delta, the wall-clock time it changed in the hub; the page
@@ -191,11 +192,12 @@ class Stopwatch:
 class Live:
     """A run on a thread with its monitor and (when asked) a page open on it, held until ``go``."""
 
-    def __init__(self, hub: Hub, control: Control, url: str, stopwatch: Stopwatch) -> None:
+    def __init__(self, hub: Hub, control: Control, url: str, stopwatch: Stopwatch, server: Any = None) -> None:
         self.hub = hub
         self.control = control
         self.url = url
         self.stopwatch = stopwatch
+        self.server = server  # the monitor's ServerThread: its thread's CPU is the server's cost
         self.page: Any = None
         self.thread: threading.Thread | None = None
         self.result: RunResult | None = None
@@ -245,7 +247,7 @@ def live(
     control.request({"action": "pause"})
     stopwatch = Stopwatch(ticks)
     server = start_monitor(hub, control, port=0)
-    held = Live(hub, control, server.url, stopwatch)
+    held = Live(hub, control, server.url, stopwatch, server)
 
     def go() -> None:
         try:
@@ -315,6 +317,18 @@ def children_cpu_s() -> float | None:
     return total
 
 
+def thread_cpu_s(thread: threading.Thread | None) -> float | None:
+    """CPU time (user + system, s) of one thread of this process so far (Linux's /proc; None elsewhere)."""
+    native = getattr(thread, "native_id", None)
+    if native is None:
+        return None
+    try:
+        fields = Path(f"/proc/self/task/{native}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
+
+
 def _entertainer_alone(folder: Path, until: float) -> tuple[Stopwatch, RunResult]:
     stopwatch = Stopwatch()
     result = run(DEFAULT_MISSION, out=folder, until=until, seed=SEED, observers=[stopwatch])
@@ -341,6 +355,7 @@ def bench_tick_cost(browser: Any, folder: Path, mission_s: float, repeats: int, 
     walls: dict[str, list[float]] = {v: [] for v in VARIANTS}
     cpus: dict[str, list[float]] = {v: [] for v in VARIANTS}
     browser_cpus: dict[str, list[float]] = {v: [] for v in VARIANTS}
+    server_cpus: dict[str, list[float]] = {v: [] for v in VARIANTS}
     ticks: set[int] = set()
     load = os.getloadavg()[0]
     _entertainer_alone(folder / "warm-up-alone", warm_up_s)  # imports, caches, the page's code: not timed
@@ -357,11 +372,13 @@ def bench_tick_cost(browser: Any, folder: Path, mission_s: float, repeats: int, 
                 after = children_cpu_s()
             else:
                 with live(DEFAULT_MISSION, out, browser if variant == "with_page" else None, until=mission_s) as held:
-                    before = children_cpu_s()
+                    before, server_before = children_cpu_s(), thread_cpu_s(held.server.thread)
                     held.go()
                     held.finish()
-                    after = children_cpu_s()
+                    after, server_after = children_cpu_s(), thread_cpu_s(held.server.thread)
                     stopwatch = held.stopwatch
+                    if server_before is not None and server_after is not None:
+                        server_cpus[variant].append(server_after - server_before)
             walls[variant].append(stopwatch.wall_s)
             cpus[variant].append(stopwatch.cpu_s)
             if before is not None and after is not None:
@@ -378,6 +395,8 @@ def bench_tick_cost(browser: Any, folder: Path, mission_s: float, repeats: int, 
             "ms_per_tick": round(best / count * 1000.0, 3),
             "cpu_s_best": round(min(cpus[variant]), 2),
             "browser_cpu_s": round(statistics.median(browser_cpus[variant]), 2) if browser_cpus[variant] else None,
+            # the monitor's web server (its thread): building and sending the deltas
+            "server_cpu_s": round(statistics.median(server_cpus[variant]), 2) if server_cpus[variant] else None,
         }
 
     base, page, bare = (figures(v) for v in VARIANTS)
@@ -654,7 +673,8 @@ def table(results: list[dict[str, Any]]) -> str:
             line(
                 "",
                 f"meanwhile the browser and Playwright's driver used {p['browser_cpu_s']} s of CPU "
-                f"(without a page: {w['browser_cpu_s']} s) on {os.cpu_count()} cores",
+                f"(without a page: {w['browser_cpu_s']} s) on {os.cpu_count()} cores; the monitor's server "
+                f"thread {p['server_cpu_s']} s",
             )
             line(
                 "",

@@ -12,6 +12,7 @@ import contextlib
 import socket
 import sys
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -122,6 +123,40 @@ def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
     return folder
 
 
+def _deployment_overview(checked: Any, supervisor: Any, mission_port: int, port: int) -> Any:
+    """The overview page on ``port``: the deployment's processes as the supervisor sees them, and
+    the mission's run (its process's monitor on ``mission_port``, proxied)."""
+    from missions.monitor.server import MonitorError, start_overview
+    from missions.monitor.sources import remote_source
+
+    deployment = checked.deployment
+
+    def processes() -> list[dict[str, Any]]:
+        states = supervisor.states()
+        return [
+            {
+                "name": name,
+                "state": states.get(name, "not started"),
+                "description": spec.description,
+                "mission": spec.mission,
+                "skills": spec.skills or [],
+                "interfaces": spec.interfaces or [],
+                "gallery": spec.gallery,
+            }
+            for name, spec in deployment.processes.items()
+        ]
+
+    mission = remote_source(f"http://127.0.0.1:{mission_port}", [], None, name=checked.mission_process)
+    try:
+        running = start_overview([mission], port=port, processes=processes, title=deployment.name)
+    except MonitorError as exc:
+        raise _fail(f"error: {exc}", 2) from None
+    console.print(
+        f"monitor: {running.url}/  (the mission: {running.url}/s/{mission.name}/)", highlight=False, soft_wrap=True
+    )
+    return running
+
+
 def free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
@@ -138,8 +173,10 @@ def up(
         False,
         help="mutual TLS and the deployment's access policy, certificates made in OUT/certs (kept for next runs)",
     ),
-    monitor: bool = typer.Option(False, "--monitor", help="the mission's process serves the live monitor"),
-    monitor_port: int = typer.Option(8470, help="the monitor's port (loopback)", min=0, max=65535),
+    monitor: bool = typer.Option(
+        False, "--monitor", help="serve a page with the processes and the mission's live monitor"
+    ),
+    monitor_port: int = typer.Option(8470, help="that page's port (loopback)", min=0, max=65535),
 ) -> None:
     """Start every process of a deployment on this machine (loopback) and stop them together."""
     from missions.deployment import check_deployment
@@ -151,7 +188,7 @@ def up(
     router = checked.router
     endpoint = f"{'tls' if secure else 'tcp'}/127.0.0.1:{port or free_port()}"
     certs = _loopback_certificates(out / "certs", list(checked.deployment.processes)) if secure else None
-    watched = monitor_port if monitor else None
+    watched = free_port() if monitor else None  # the mission's process serves its monitor there
     commands = process_commands(
         deployment, endpoint, out=out, seed=seed, until=until, certs=certs, monitor_port=watched
     )
@@ -166,6 +203,7 @@ def up(
     title = f"{checked.deployment.name}: {len(names)} processes on {endpoint} (router: {router})"
     console.print(title, highlight=False)
     code = 1
+    overview = _deployment_overview(checked, supervisor, watched, monitor_port) if watched is not None else None
     try:
         supervisor.start()
         while True:
@@ -180,6 +218,8 @@ def up(
     except KeyboardInterrupt:
         code = 130
     finally:
+        if overview is not None:
+            overview.stop()
         supervisor.stop()
         for name, state in supervisor.states().items():
             console.print(f"  {name:<{width}}  {state}", highlight=False)

@@ -28,6 +28,7 @@ from behaviors.blackboard import normalise_key
 from behaviors.machine import MachineBehaviour
 from behaviors.skill_behaviour import SkillBehaviour
 from missions.monitor.hub import OPERATOR, Hub
+from missions.steering import ESTOP, ESTOP_RELEASED, TELEOP_ENDED, drive_one_step, stop_everything, teleop_note
 from skills.base import Outcome, Skill, check_type
 from skills.expression import Expression, ExpressionError, compile_expression
 
@@ -36,7 +37,7 @@ if TYPE_CHECKING:
 
 NODE = OPERATOR
 BREAK_KINDS = ("state", "node", "transition", "condition")
-ESTOP_REASON = "e-stop from the monitor"
+ESTOP_REASON = ESTOP
 _WAIT_S = 0.25  # how often a held run looks up from waiting (Ctrl-C, a stopped server)
 TELEOP_WATCHDOG_S = 0.5  # the robot stops when the page's teleop commands stop for this long (wall time)
 
@@ -343,12 +344,13 @@ class Control:
         if drive is None or backend is None:
             self._end_teleop(session)
             return
-        if not self.teleop_state["active"]:
-            self._trace_note("teleop from the monitor")
-        drive.cmd_vel(v, w)
+        state = self.teleop_state
+        if not state["active"] or (state["v"], state["w"]) != (v, w):
+            self._trace_note(teleop_note(v, w))  # each new command: a replay drives as this run did
         _release(session.clock)  # the world driven by hand moves in mission time
-        session.step_world()
+        drive_one_step(session, v, w)
         _hold(session.clock)
+        self.hub.set_flags(t=session.clock.now())  # mission time moves on with the world, the tree held
         self.teleop_state = {"active": True, "v": v, "w": w}
         self.on_change(session)
         if v == 0.0 and w == 0.0:
@@ -365,7 +367,7 @@ class Control:
             if drive is not None:
                 drive.stop()
             self.teleop_state = {"active": False, "v": 0.0, "w": 0.0}
-            self._trace_note("teleop ended")
+            self._trace_note(TELEOP_ENDED)
             self.on_change(session)
 
     def close(self) -> None:
@@ -414,19 +416,14 @@ class Control:
             return
         self.estopped = True
         self._trace_note(ESTOP_REASON)
-        engine = session.engine
-        if engine is not None:
-            engine.halt(ESTOP_REASON)
-        drive = session.interfaces.get("drive")
-        if drive is not None:
-            drive.stop()
+        stop_everything(session, ESTOP_REASON)
         self.hub.set_flags(estopped=True, paused=True, pause_reason=ESTOP_REASON)
 
     def _release_estop(self, session: RunSession) -> None:
         if not self.estopped:
             return
         self.estopped = False
-        self._trace_note("e-stop released by the operator")
+        self._trace_note(ESTOP_RELEASED)
         self.hub.set_flags(
             estopped=False, paused=self.paused, pause_reason="paused by the operator" if self.paused else ""
         )

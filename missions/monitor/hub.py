@@ -61,6 +61,18 @@ def type_name(value: Any) -> str:
     return "null" if value is None else type(value).__name__
 
 
+def _newer(ring: deque[tuple[int, dict[str, Any]]], since: int) -> list[dict[str, Any]]:
+    """The entries of ``ring`` after version ``since``: versions grow along a ring, so only its
+    new end is read (a delta every 50 ms scanned the whole 5,000-entry timeline before)."""
+    newer: list[dict[str, Any]] = []
+    for version, entry in reversed(ring):
+        if version <= since:
+            break
+        newer.append(entry)
+    newer.reverse()
+    return newer
+
+
 @dataclass
 class Flags:
     """The run as a whole: where it is, and whether the operator holds it."""
@@ -95,6 +107,7 @@ class Hub:
     timeline: deque[tuple[int, dict[str, Any]]] = field(default_factory=lambda: deque(maxlen=TIMELINE))
     display: deque[tuple[int, dict[str, Any]]] = field(default_factory=lambda: deque(maxlen=SHOWN))
     breakpoints: list[dict[str, Any]] = field(default_factory=list)
+    breakpoints_at: int = 0  # the version that last changed them: a delta carries them only then
     robot: tuple[dict[str, Any] | None, int] = (None, 0)  # the map's view of the robot (robot_view.py)
     camera: tuple[bytes, int] = (b"", 0)  # the latest camera frame (JPEG) while teleoperated, its number
     shown_count: int = 0
@@ -205,6 +218,7 @@ class Hub:
         with self.lock:
             self.breakpoints = [dict(b) for b in breakpoints]
             self.version += 1
+            self.breakpoints_at = self.version
 
     # -- the pages ----------------------------------------------------------------------------
 
@@ -212,8 +226,9 @@ class Hub:
         return self.delta(0)
 
     def delta(self, since: int, stamps: bool = False) -> dict[str, Any]:
-        """Everything that changed after version ``since`` (all of it for 0); ``stamps``: with the
-        wall-clock time each changed status changed at."""
+        """Everything that changed after version ``since`` (all of it for 0; the breakpoints and
+        the robot only when they changed); ``stamps``: with the wall-clock time each changed status
+        changed at."""
         with self.lock:
             if stamps:
                 changed = [path for path, (_, v) in self.statuses.items() if v > since]
@@ -227,11 +242,11 @@ class Hub:
                 "statuses": {path: status for path, (status, v) in self.statuses.items() if v > since},
                 "states": {machine: state for machine, (state, v) in self.states.items() if v > since},
                 "blackboard": {key: info for key, (info, v) in self.blackboard.items() if v > since},
-                "timeline": [entry for v, entry in self.timeline if v > since],
-                "display": [entry for v, entry in self.display if v > since],
-                "said": [entry for v, entry in self.said if v > since],
-                "photos": [entry for v, entry in self.photos if v > since],
-                "breakpoints": list(self.breakpoints),
+                "timeline": _newer(self.timeline, since),
+                "display": _newer(self.display, since),
+                "said": _newer(self.said, since),
+                "photos": _newer(self.photos, since),
+                **({"breakpoints": list(self.breakpoints)} if self.breakpoints_at > since or since == 0 else {}),
                 **({"robot": self.robot[0]} if self.robot[1] > since or since == 0 else {}),
             }
 

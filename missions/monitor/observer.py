@@ -1,22 +1,27 @@
 """The live monitor as a run observer: the trace's events feed the pages' view of the run, the
 operator's requests are carried out between ticks, and the robot's Display is watched so the
 ``/display`` page shows what it shows (on a robot without a screen of its own, that page is it).
+
+It also leaves ``poses.csv`` in the run folder: the true pose and the localiser's estimate every
+``POSE_EVERY_S`` of mission time, for the map of ``botstage monitor RUN_FOLDER``. Read from what is
+already there between ticks, never from a device, so the trace is the same with or without it.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import cv2
 
 from behaviors.render import describe, to_plain
 from missions.monitor.control import NODE, Control
 from missions.monitor.hub import Hub
-from missions.monitor.robot_view import SAMPLE_S, robot_sample
+from missions.monitor.robot_view import POSES_FILE, POSES_HEADER, SAMPLE_S, pose_row, poses, robot_sample
 
 FRAME_S = 0.2  # camera frames for the teleop view, at most 5 a second
+POSE_EVERY_S = 0.2  # poses.csv: a row per this much mission time at most (18,000 rows an hour)
 
 if TYPE_CHECKING:
     from missions.session.result import RunResult
@@ -51,6 +56,8 @@ class MonitorObserver:
         self.control = control
         self._next_sample = 0.0
         self._next_frame = 0.0
+        self._poses: IO[str] | None = None
+        self._next_pose = 0.0
 
     def started(self, session: RunSession) -> None:
         assert session.root is not None and session.engine is not None and session.trace is not None
@@ -72,6 +79,9 @@ class MonitorObserver:
         self.hub.grid = session.backend.grid if session.backend is not None else None
         self.hub.folder = session.folder
         self._sample(session)
+        if session.backend is not None and session.folder is not None:
+            self._poses = open(session.folder / POSES_FILE, "w", encoding="utf-8")  # noqa: SIM115 (closed in finished)
+            self._poses.write(POSES_HEADER + "\n")
         trace = session.trace
         self.control.attach(lambda message: trace.emit("log", NODE, "info", message))
         interfaces = session.engine.interfaces
@@ -95,6 +105,11 @@ class MonitorObserver:
         if now >= self._next_sample:
             self._next_sample = now + SAMPLE_S
             self._sample(session)
+        if self._poses is not None:  # the record is in mission time: the same rows however fast
+            t = self.hub.flags.t
+            if t >= self._next_pose:
+                self._next_pose = t + POSE_EVERY_S - 1e-6  # 0.2 s: every other tick at 10 Hz
+                self._poses.write(pose_row(self.hub.flags.tick, t, *poses(session)) + "\n")
 
     def _sample(self, session: RunSession) -> None:
         control = self.control
@@ -120,6 +135,9 @@ class MonitorObserver:
         self._sample(session)
 
     def finished(self, session: RunSession, result: RunResult) -> None:
+        if self._poses is not None:
+            self._poses.close()
+            self._poses = None
         self.hub.set_flags(ended=True, paused=False, outcome=result.outcome)
         if self.control is not None:
             self.control.close()

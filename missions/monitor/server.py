@@ -1,7 +1,8 @@
 """The monitor's web application (FastAPI) and where it listens.
 
 Pages: ``/`` the monitor, ``/display`` the robot's tablet. JSON: ``/api/info``,
-``/api/structure``, ``/api/snapshot``, ``/api/events`` (server-sent events: a delta of what
+``/api/structure``, ``/api/snapshot``, ``/api/summary`` (the run at a glance, for the overview of
+several runs: ``sources.py``), ``/api/events`` (server-sent events: a delta of what
 changed, at most every ``PUSH_S``; ``?since=VERSION`` resumes after a snapshot; ``&stamps=1``
 adds when each changed status changed, for the benchmark), ``/api/history?key=K``,
 ``/api/display``, ``/api/photo?file=photos/…`` (a photo the run took), ``/api/map`` and
@@ -31,6 +32,7 @@ from missions.monitor.control import Control, ControlError
 from missions.monitor.hub import Hub
 from missions.monitor.replay import RecordedRun
 from missions.monitor.robot_view import map_info, map_png
+from missions.monitor.sources import ProcessesView, Source, create_overview_app, summary
 from missions.serving import ServerThread, app_config, bind, is_loopback, start_server
 
 DEFAULT_HOST = "127.0.0.1"
@@ -103,6 +105,10 @@ def create_app(
     @app.get("/api/snapshot")
     def snapshot() -> Response:
         return Response(_dumps(hub.snapshot()), media_type="application/json")
+
+    @app.get("/api/summary")
+    def at_a_glance() -> dict[str, Any]:
+        return summary(hub)
 
     @app.get("/api/history")
     def history(key: str) -> list[dict[str, Any]]:
@@ -248,3 +254,22 @@ def start_monitor(
     port = sock.getsockname()[1]
     config = app_config(create_app(hub, control, token=token, run=run), host, port)
     return start_server(config, sock, "monitor")
+
+
+def start_overview(
+    sources: list[Source],
+    *,
+    host: str = DEFAULT_HOST,
+    port: int = DEFAULT_PORT,
+    token: str | None = None,
+    processes: ProcessesView | None = None,
+    title: str = "",
+) -> ServerThread:
+    """Serve several runs on one page (``sources.py``) on a thread; as ``start_monitor`` otherwise."""
+    try:
+        sock = bind(host, port)
+    except OSError as exc:
+        raise MonitorError(f"the monitor cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    port = sock.getsockname()[1]
+    app = create_overview_app(sources, token=token, processes=processes, title=title)
+    return start_server(app_config(app, host, port), sock, "monitor")

@@ -96,7 +96,7 @@
 
   async function poll() {
     try {
-      const r = await fetch("/api/display", { cache: "no-store" });
+      const r = await fetch("api/display", { cache: "no-store" });
       if (!r.ok) throw new Error("HTTP " + r.status);
       apply(await r.json());
       failures = 0;

@@ -151,6 +151,7 @@
     saidReset: false,        // transcript replaced by pendingSaid
     photosReset: false,      // photos replaced by pendingPhotos
     robot: false,            // the map, data-pose and the teleop panel
+    flash: false,            // changed blackboard rows to unmark
     teleop: false,           // the teleop panel only (a key or button held or let go)
   };
   let pendingEntries = [];
@@ -451,14 +452,31 @@
     tbody.appendChild(tr);
   }
 
-  // No forced layout: a Web Animation restarts without reading offsetWidth.
-  const FLASH_FRAMES = [{ backgroundColor: "#fff4b3" }, { backgroundColor: "transparent" }];
-  const FLASH_TIMING = { duration: 1200, easing: "ease-out" };
+  // A changed row is marked for FLASH_MS, unmarked by a later flush: a static highlight is
+  // painted only in the frames the page draws anyway. (A fading animation repainted the table
+  // every frame while a fast run changed keys at every push: a third of the browser's CPU.)
+  const FLASH_MS = 1000;
+  const flashed = new Map(); // <tr> -> when it was marked (performance.now())
+  let unflashTimer = 0;
   function flashRow(tr) {
     tr.classList.add("flash");
-    if (typeof tr.animate !== "function") return;
-    if (tr._flash) for (const a of tr._flash) a.cancel();
-    tr._flash = [...tr.cells].map((td) => td.animate(FLASH_FRAMES, FLASH_TIMING));
+    flashed.set(tr, performance.now());
+  }
+
+  function unflashRows() {
+    if (!flashed.size) return;
+    const now = performance.now();
+    let next = Infinity;
+    for (const [tr, at] of flashed) {
+      if (now - at >= FLASH_MS) {
+        tr.classList.remove("flash");
+        flashed.delete(tr);
+      } else {
+        next = Math.min(next, at + FLASH_MS - now);
+      }
+    }
+    clearTimeout(unflashTimer);
+    if (flashed.size) unflashTimer = setTimeout(() => { dirty.flash = true; schedule(); }, next + 5);
   }
 
   function renderBlackboardAll() {
@@ -521,7 +539,7 @@
     $("#history-title").textContent = `history of ${key}`;
     let items;
     try {
-      items = await getJSON(`/api/history?key=${encodeURIComponent(key)}`);
+      items = await getJSON(`api/history?key=${encodeURIComponent(key)}`);
     } catch (e) {
       hist.textContent = "";
       hist.appendChild(el("div", "empty", e.detail || e.message));
@@ -809,7 +827,7 @@
   // ---- photos -----------------------------------------------------------------------------------
 
   function photoURL(file) {
-    return "/api/photo?file=" + encodeURIComponent(file);
+    return "api/photo?file=" + encodeURIComponent(file);
   }
 
   function photoThumb(p) {
@@ -1155,13 +1173,14 @@
     dirty.saidReset = true;
     pendingPhotos = Array.isArray(s.photos) ? s.photos.slice(-MAX_PHOTOS) : [];
     dirty.photosReset = true;
-    setRobot(s.robot);
+    if (!model.replay) setRobot(s.robot);
     schedule();
   }
 
-  // The robot object comes whole (null: the run has none); a replay has no robot data yet.
+  // The robot object comes whole (null: the run has none). A replay's comes with each scrubbed
+  // tick (/api/at: the poses the run recorded), not with the snapshot.
   function setRobot(robot) {
-    model.robot = !model.replay && robot && typeof robot === "object" ? robot : null;
+    model.robot = robot && typeof robot === "object" ? robot : null;
     dirty.robot = true;
   }
 
@@ -1222,6 +1241,7 @@
     if (a.t !== undefined) model.t = a.t;
     dirty.status = true;
     replaceMaps(a);
+    setRobot(a.robot);
     const pre = $("#tree-text");
     if (pre.textContent !== (a.text ?? "")) pre.textContent = a.text ?? "";
     model.applied++;
@@ -1236,6 +1256,16 @@
 
   let hiddenDirty = false;   // the model changed while the tab was hidden
 
+  // A run much faster than real time (a simulation at full speed changes everything at every
+  // push) is drawn at most every FAST_FRAME_MS: nobody reads 75 ticks a second, and each frame
+  // costs the browser CPU the run itself needs on a small machine. Nothing is dropped: the model
+  // keeps every delta and the next frame draws all of it. At real time every push is drawn.
+  const FAST_FRAME_MS = 500;
+  const FAST_SPEED = 2;      // mission seconds per wall second above which a run counts as fast
+  let lastFlushAt = 0;       // performance.now() of the last flush
+  let lastFlushT = 0;        // the run's time then
+  let fastRun = false;
+
   function schedule() {
     if (scheduled) return;
     if (document.hidden) {
@@ -1245,9 +1275,23 @@
       return;
     }
     scheduled = true;
+    const wait = fastRun && !model.paused && !model.ended ? lastFlushAt + FAST_FRAME_MS - performance.now() : 0;
+    if (wait > 0) timerId = setTimeout(frame, wait);
+    else frame();
+  }
+
+  function frame() {
     rafId = requestAnimationFrame(flush);
     // a fallback should rAF stall while the tab still counts as visible
+    clearTimeout(timerId);
     timerId = setTimeout(flush, 250);
+  }
+
+  function measureSpeed() {
+    const now = performance.now();
+    if (lastFlushAt && now > lastFlushAt) fastRun = (model.t - lastFlushT) / ((now - lastFlushAt) / 1000) > FAST_SPEED;
+    lastFlushAt = now;
+    lastFlushT = model.t;
   }
 
   document.addEventListener("visibilitychange", () => {
@@ -1265,6 +1309,7 @@
       hiddenDirty = true;
       return;
     }
+    measureSpeed();
 
     if (dirty.all) {
       const [set, leaves] = computeActive();
@@ -1283,6 +1328,8 @@
         if (selectedKey && dirty.bb.has(selectedKey)) historyChanged();
       }
     }
+    dirty.flash = false;
+    unflashRows();
     dirty.all = false;
     dirty.statuses.clear();
     dirty.states = false;
@@ -1376,7 +1423,7 @@
     }
     let snap;
     try {
-      snap = await getJSON("/api/snapshot");
+      snap = await getJSON("api/snapshot");
     } catch (e) {
       if (gen === generation) {
         lost(e.message);
@@ -1389,7 +1436,7 @@
     if (snap.version === undefined || snap.version !== model.version || !window.monitor.ready) applySnapshot(snap);
 
     const since = typeof snap.version === "number" ? `?since=${snap.version}` : "";
-    const source = new EventSource("/api/events" + since);
+    const source = new EventSource("api/events" + since);
     es = source;
     source.onmessage = (msg) => {
       if (gen !== generation) return;
@@ -1439,7 +1486,7 @@
       const n = atWanted;
       atWanted = null;
       try {
-        applyAt(await getJSON(`/api/at?tick=${n}`));
+        applyAt(await getJSON(`api/at?tick=${n}`));
       } catch (e) {
         showMessage(e.message, "error");
       }
@@ -1469,7 +1516,7 @@
   }
 
   async function startReplay() {
-    const [snap, r] = await Promise.all([getJSON("/api/snapshot"), getJSON("/api/range")]);
+    const [snap, r] = await Promise.all([getJSON("api/snapshot"), getJSON("api/range")]);
     range = { first: Number(r.first) || 0, last: Number(r.last) || 0 };
     for (const input of [$("#scrubber"), $("#tick")]) {
       input.min = range.first;
@@ -1518,7 +1565,7 @@
     let r;
     let data = null;
     try {
-      r = await fetch("/api/control", { method: "POST", headers, body: JSON.stringify(body) });
+      r = await fetch("api/control", { method: "POST", headers, body: JSON.stringify(body) });
     } catch (e) {
       showMessage(`${body.action}: cannot reach the backend (${e.message})`, "error");
       return null;
@@ -1611,6 +1658,7 @@
     pose: "#1c2230",
     estimate: "#1f6fd1",
     laser: "rgba(224, 40, 45, 0.9)",
+    path: "rgba(122, 63, 191, 0.85)",
     person: "#1c9a3c",
     personFill: "rgba(28, 154, 60, 0.25)",
     crowd: "#f08a00",
@@ -1640,7 +1688,7 @@
   }
 
   async function loadMap() {
-    if (mapView.state !== "unknown" || model.replay) return;
+    if (mapView.state !== "unknown") return;
     if (model.info && model.info.map === false) {
       mapView.state = "none"; // a backend that says so in /api/info is not asked
       return;
@@ -1648,7 +1696,7 @@
     mapView.state = "loading";
     let info;
     try {
-      const r = await fetch("/api/map", { cache: "no-store" });
+      const r = await fetch("api/map", { cache: "no-store" });
       if (r.status === 404) {
         mapView.state = "none";
         return;
@@ -1670,7 +1718,7 @@
     const loaded = await new Promise((ok) => {
       image.onload = () => ok(true);
       image.onerror = () => ok(false);
-      image.src = `/api/map.png?v=${Date.now()}`; // a new run on the same port may have another map
+      image.src = `api/map.png?v=${Date.now()}`; // a new run on the same port may have another map
     });
     if (!loaded) showMessage("map: the map image did not load; drawing the robot without it", "error");
     mapView.info = info;
@@ -1827,6 +1875,28 @@
     const r = model.robot;
     if (!r || typeof r !== "object") return;
 
+    // the path the robot is driving (its navigation stack's current plan), goal ringed
+    const path = Array.isArray(r.path) ? r.path.filter(xy) : [];
+    if (path.length > 1) {
+      ctx.strokeStyle = MAP_COLORS.path;
+      ctx.lineWidth = 2;
+      ctx.lineJoin = "round";
+      ctx.setLineDash([6, 4]);
+      ctx.beginPath();
+      for (const [i, p] of path.entries()) {
+        const [px, py] = toCanvas(p[0], p[1]);
+        if (i) ctx.lineTo(px, py);
+        else ctx.moveTo(px, py);
+      }
+      ctx.stroke();
+      ctx.setLineDash([]);
+      const goal = path[path.length - 1];
+      const [gx, gy] = toCanvas(goal[0], goal[1]);
+      ctx.beginPath();
+      ctx.arc(gx, gy, 4, 0, 2 * Math.PI);
+      ctx.stroke();
+    }
+
     if (Array.isArray(r.laser) && r.laser.length) {
       ctx.fillStyle = MAP_COLORS.laser;
       ctx.beginPath();
@@ -1893,7 +1963,7 @@
   // data-pose on the canvas, the readout in the panel's head, and the drawing.
   function renderRobot() {
     const r = model.robot && typeof model.robot === "object" ? model.robot : null;
-    if (r && mapView.state === "unknown" && !model.replay) loadMap();
+    if (r && mapView.state === "unknown") loadMap();
     const canvas = $("#map");
     const pose = r ? xy(r.pose) || xy(r.estimate) : null;
     if (pose) {
@@ -1903,6 +1973,8 @@
     } else if (canvas.dataset.pose !== undefined) {
       delete canvas.dataset.pose;
     }
+    const points = r && Array.isArray(r.path) ? String(r.path.length) : "0";
+    if (canvas.dataset.path !== points) canvas.dataset.path = points; // for tests: the path's points
     const readout = [];
     if (r && xy(r.pose)) readout.push(`pose ${fmtPose(r.pose)}`);
     if (r && xy(r.estimate)) readout.push(`est ${fmtPose(r.estimate)}`);
@@ -1990,7 +2062,7 @@
     let r;
     let data = null;
     try {
-      r = await fetch("/api/teleop", opts);
+      r = await fetch("api/teleop", opts);
     } catch (e) {
       teleopRefused(cmd, `teleop: cannot reach the backend (${e.message})`);
       return false;
@@ -2188,7 +2260,7 @@
     };
     img.onload = () => done(true);
     img.onerror = () => done(false); // keep the frame shown before
-    img.src = `/api/camera.jpg?n=${n}`;
+    img.src = `api/camera.jpg?n=${n}`;
   }
 
   function wireTeleop() {
@@ -2268,7 +2340,7 @@
     let info;
     for (;;) {
       try {
-        info = await getJSON("/api/info");
+        info = await getJSON("api/info");
         break;
       } catch (e) {
         showMessage(`cannot reach the backend: ${e.message}`, "error");
@@ -2291,7 +2363,7 @@
     renderStatus();
 
     try {
-      buildTree(await getJSON("/api/structure"));
+      buildTree(await getJSON("api/structure"));
     } catch (e) {
       showMessage(`cannot load the structure: ${e.message}`, "error");
     }
