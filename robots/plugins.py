@@ -59,5 +59,17 @@ def discover(
         if isinstance(declared, str) and declared and declared != ep.name:
             problems.append(PluginProblem(label, f"entry point name differs from the {what}'s name {declared!r}"))
             continue
+        yield Plugin(ep.name, value, f"plugin {_distribution(ep)}", label)
+
+
+_DISTRIBUTIONS: dict[tuple[str, str, str], str] = {}
+
+
+def _distribution(ep: Any) -> str:
+    """The name of the distribution declaring ``ep``, read once per process: each read parses the
+    distribution's METADATA, and checking a mission looks up every plug-in of every group."""
+    key = (ep.group, ep.name, ep.value)
+    if key not in _DISTRIBUTIONS:
         dist = getattr(ep, "dist", None)
-        yield Plugin(ep.name, value, f"plugin {dist.name if dist else ep.value}", label)
+        _DISTRIBUTIONS[key] = dist.name if dist is not None else ep.value
+    return _DISTRIBUTIONS[key]

@@ -37,6 +37,13 @@ def main() -> None:
             page.wait_for_selector("#map[data-pose]")
             page.wait_for_timeout(500)  # let the map draw its frame
             page.screenshot(path=str(OUT / "monitor.png"))
+            for _ in range(15):  # held at the breakpoint: drive by hand, the camera shown
+                live.http.post("/api/teleop", json={"v": 0.0, "w": 0.5})
+                page.wait_for_timeout(100)
+            page.wait_for_selector("#camera:not([hidden])")
+            page.wait_for_timeout(300)
+            page.locator("#teleop").screenshot(path=str(OUT / "teleop.png"))
+            live.http.post("/api/teleop", json={"v": 0.0, "w": 0.0})
             page.goto(live.url + "/display")
             page.wait_for_function("() => document.querySelector('#layout').dataset.layout")
             page.screenshot(path=str(OUT / "display.png"))
