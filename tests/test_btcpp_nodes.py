@@ -13,45 +13,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-import py_trees
 import pytest
 from py_trees.common import Status
 
 from behaviors.builder import SpecError
-from behaviors.kinds import LeafKind, NodeBuild, NodeKinds
-
-LETTERS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
-LOG: list[str] = []
-
-
-class _Scripted(py_trees.behaviour.Behaviour):
-    def __init__(self, name: str, script: str) -> None:
-        super().__init__(name=name)
-        self.script = script
-        self.ticks = 0
-
-    def update(self) -> Status:
-        LOG.append(self.name)
-        letter = self.script[min(self.ticks, len(self.script) - 1)]
-        self.ticks += 1
-        return LETTERS[letter]
-
-    def terminate(self, new_status: Status) -> None:
-        if new_status is Status.INVALID and self.status is Status.RUNNING:
-            LOG.append(self.name + "!")
-
-
-class Scripted(LeafKind):
-    name = "Scripted"
-    description = "a test leaf that returns a scripted status each tick"
-
-    def build(self, b: NodeBuild) -> py_trees.behaviour.Behaviour:
-        (name, script), *_ = b.value.items()
-        return _Scripted(name, script)
-
-
-def leaf(name: str, script: str) -> dict[str, Any]:
-    return {"Scripted": {name: script}, "name": name}
+from behaviors.kinds import NodeKinds
+from tests.scripted_nodes import LOG, A, B, C, Scripted, leaf, run
 
 
 @pytest.fixture
@@ -61,23 +28,6 @@ def engine(make_engine: Any) -> Iterator[Any]:
     LOG.clear()
     yield make_engine(rate_hz=10, kinds=kinds)
 
-
-def run(engine: Any, spec: dict[str, Any], ticks: int, halt_after: int | None = None) -> list[tuple[str, str]]:
-    """(status, log) per tick; ``halt_after``: halt the whole tree after that many ticks."""
-    engine.set_root(engine.builder().tree(spec))
-    got = []
-    for n in range(ticks):
-        if halt_after is not None and n == halt_after:
-            engine.root.stop(Status.INVALID)
-            got.append(("halt", " ".join(LOG)))
-            LOG.clear()
-        status = engine.tick()
-        got.append((status.value[0], " ".join(LOG)))
-        LOG.clear()
-    return got
-
-
-A, B, C = "A", "B", "C"
 
 CASES: list[tuple[str, dict[str, Any], list[tuple[str, str]], int | None]] = [
     # -- Sequence: keeps its child while RUNNING; resets on SUCCESS and on FAILURE
