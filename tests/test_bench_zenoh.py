@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from missions.bench import bench_zenoh
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -71,3 +73,22 @@ def test_a_missed_target_is_marked_and_listed() -> None:
     line = next(line for line in bench_zenoh.table([result]).splitlines() if line.startswith("entertainer"))
     assert "4.50x" in line and line.endswith("MISSED")
     assert "MISSED" not in bench_zenoh.table([{**result, "ratio": 1.5, "meets_target": True}])
+
+
+def test_only_runs_the_benches_named() -> None:
+    assert bench_zenoh.selected(None) == ["skill_call", "stream_scan", "stream_image", "entertainer"]
+    assert bench_zenoh.selected(["entertainer", "skill_call, stream_scan"]) == [
+        "skill_call",
+        "stream_scan",
+        "entertainer",
+    ]
+    with pytest.raises(ValueError, match="unknown bench nope"):
+        bench_zenoh.selected(["skill_call,nope"])
+    command = [sys.executable, "-m", "missions.cli", "bench", "zenoh", "--only", "skill_call", "--calls", "20"]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
+    rows = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
+    assert [row["bench"] for row in rows] == ["skill_call"], done.stdout[-3000:] + done.stderr[-3000:]
+    refused = subprocess.run(
+        [*command[:5], "--only", "nope"], cwd=ROOT, capture_output=True, text=True, timeout=600, check=False
+    )
+    assert refused.returncode != 0 and "unknown bench nope" in refused.stderr

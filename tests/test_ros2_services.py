@@ -25,7 +25,7 @@ from robots.ros2 import types
 from robots.ros2.attachment import Attachment, decode, encode
 from robots.ros2.liveliness import EntityKind, parse_token
 from robots.ros2.node import Ros2Node
-from robots.ros2.qos import QoS
+from robots.ros2.qos import History, QoS
 from robots.ros2.service import PendingRequest, ServiceError, ServiceTimeout, ServiceUnavailable, is_zenoh_timeout
 from tests.ros2_client.independent_interfaces import AddTwoInts, Measure, Measure_Request, Thing
 from tests.test_ros2_interop import FAILSAFE_S, listening_node, until
@@ -318,16 +318,73 @@ def test_a_full_keep_last_queue_drops_the_oldest_request(nodes: tuple[Ros2Node, 
         return add(request)
 
     server = server_node.service("narrow", ADD, blocking, QoS(depth=1))
-    client = caller.client("narrow", ADD)
-    assert client.wait_for_service(FAILSAFE_S)
+    server_node.service("probe", ADD, add)
+    client, probe = caller.client("narrow", ADD), caller.client("probe", ADD)
+    assert client.wait_for_service(FAILSAFE_S) and probe.wait_for_service(FAILSAFE_S)
     first = client.call_async(add_request(1, 0))
-    assert entered.wait(FAILSAFE_S)  # the first is being handled: the queue is empty
+    assert entered.wait(FAILSAFE_S)  # the first is being handled: nothing waits
     second, third = client.call_async(add_request(2, 0)), client.call_async(add_request(3, 0))
+    # one link delivers in order: once the probe is answered, the second and third wait at the server
+    assert probe.call(add_request(0, 0), FAILSAFE_S).sum == 0
+    assert not second.done()  # told when the server's thread is free, not as it arrives
+    release.set()
     with pytest.raises(ServiceError, match="request dropped, the server's queue of 1 is full"):
         second.result(FAILSAFE_S)
-    release.set()
     assert (first.result(FAILSAFE_S).sum, third.result(FAILSAFE_S).sum) == (1, 3)
-    assert server.stats.dropped == 1
+    assert server.stats.dropped == 1 and server.stats.received == 3
+
+
+def test_keep_all_answers_every_waiting_request_in_arrival_order(nodes: tuple[Ros2Node, Ros2Node]) -> None:
+    server_node, caller = nodes
+    entered, release = threading.Event(), threading.Event()
+    order: list[int] = []
+
+    def blocking(request: Any) -> Any:
+        order.append(request.a)
+        entered.set()
+        release.wait(FAILSAFE_S)
+        return add(request)
+
+    server = server_node.service("wide", ADD, blocking, QoS(history=History.KEEP_ALL))
+    client = caller.client("wide", ADD)
+    assert client.wait_for_service(FAILSAFE_S)
+    calls = [client.call_async(add_request(1, 0))]
+    assert entered.wait(FAILSAFE_S)
+    calls += [client.call_async(add_request(a, 0)) for a in range(2, 6)]
+    release.set()
+    assert [call.result(FAILSAFE_S).sum for call in calls] == [1, 2, 3, 4, 5]
+    assert order == [1, 2, 3, 4, 5] and server.stats.dropped == 0
+
+
+def test_closing_a_busy_server_ends_its_waiting_requests_unanswered_and_stops_its_thread(
+    nodes: tuple[Ros2Node, Ros2Node],
+) -> None:
+    server_node, caller = nodes
+    entered, release = threading.Event(), threading.Event()
+
+    def blocking(request: Any) -> Any:
+        entered.set()
+        release.wait(FAILSAFE_S)
+        return add(request)
+
+    server = server_node.service("closing", ADD, blocking)
+    server_node.service("probe", ADD, add)
+    client, probe = caller.client("closing", ADD), caller.client("probe", ADD)
+    assert client.wait_for_service(FAILSAFE_S) and probe.wait_for_service(FAILSAFE_S)
+    first = client.call_async(add_request(1, 0))
+    assert entered.wait(FAILSAFE_S)
+    second = client.call_async(add_request(2, 0))
+    assert probe.call(add_request(0, 0), FAILSAFE_S).sum == 0  # the second waits at the server
+    closing = threading.Thread(target=server.close)
+    closing.start()
+    assert until(lambda: server.closed)
+    release.set()  # close() waits for the running handler; its answer is not sent
+    closing.join(FAILSAFE_S)
+    assert not closing.is_alive() and not server._thread.is_alive()
+    for call in (first, second):
+        with pytest.raises(ServiceUnavailable):
+            call.result(FAILSAFE_S)
+    assert server.stats.received == 1  # the second was never taken
 
 
 def test_wait_for_service_follows_servers_coming_and_going(nodes: tuple[Ros2Node, Ros2Node]) -> None:

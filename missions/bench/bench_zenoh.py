@@ -567,13 +567,30 @@ def table(results: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+BENCH_NAMES = ("skill_call", "stream_scan", "stream_image", "entertainer")  # what ``--only`` picks
+
+
+def selected(only: list[str] | None) -> list[str]:
+    """The benches ``only`` names (each item one name or a comma list), all when none; ValueError for an unknown one."""
+    if not only:
+        return list(BENCH_NAMES)
+    names = {name.strip() for item in only for name in item.split(",") if name.strip()}
+    unknown = sorted(names - set(BENCH_NAMES))
+    if unknown:
+        raise ValueError(f"unknown bench {', '.join(unknown)}: choose from {', '.join(BENCH_NAMES)}")
+    return [name for name in BENCH_NAMES if name in names]
+
+
 def main(
     quick: bool = False,
     calls: int | None = None,
     seconds: float | None = None,
     seed: int = 1,
     until: float | None = None,
+    only: list[str] | None = None,
 ) -> list[dict[str, Any]]:
+    """Run the benches ``only`` names (all by default; stream_image includes its flat-out run)."""
+    chosen = selected(only)
     calls = calls or (200 if quick else 2000)
     seconds = seconds or (2.0 if quick else 10.0)
     rounds = 1 if quick else 2
@@ -586,17 +603,22 @@ def main(
         results.append(result)
         print(json.dumps(result), flush=True)
 
-    node, endpoint = listening_node("bench_near")
-    with node:
-        far = FarProcess(endpoint, response_bytes)
-        try:
-            report(bench_skill_call(node, calls, request_bytes, response_bytes))
-            for kind, (_, _, rate) in STREAMS.items():
-                report(bench_stream(node, far, kind, max(3, round(seconds * rate)), rounds))
-            report(bench_stream(node, far, "image", max(3, round(seconds * 30)), rounds, flat_out=True))
-        finally:
-            far.stop()
-    report(bench_entertainer(seed, until))
+    if set(chosen) & {"skill_call", "stream_scan", "stream_image"}:
+        node, endpoint = listening_node("bench_near")
+        with node:
+            far = FarProcess(endpoint, response_bytes)
+            try:
+                if "skill_call" in chosen:
+                    report(bench_skill_call(node, calls, request_bytes, response_bytes))
+                for kind, (_, _, rate) in STREAMS.items():
+                    if f"stream_{kind}" in chosen:
+                        report(bench_stream(node, far, kind, max(3, round(seconds * rate)), rounds))
+                if "stream_image" in chosen:
+                    report(bench_stream(node, far, "image", max(3, round(seconds * 30)), rounds, flat_out=True))
+            finally:
+                far.stop()
+    if "entertainer" in chosen:
+        report(bench_entertainer(seed, until))
     print(table(results), flush=True)
     return results
 

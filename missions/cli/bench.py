@@ -171,11 +171,19 @@ def bench_zenoh(
     until: float | None = typer.Option(
         None, min=0.1, help="the entertainer's mission time in s (default: the whole mission; 30 with --quick)"
     ),
+    only: list[str] | None = typer.Option(
+        None,
+        help="run only these benches (repeat or comma list): skill_call, stream_scan, stream_image, entertainer",
+    ),
 ) -> None:
     """Remote skill calls and sensor streams against raw Zenoh; the entertainer on five processes against one."""
     from missions.bench import bench_zenoh as bench
 
-    missed = bench.missed(bench.main(quick=quick, calls=calls, seconds=seconds, seed=seed, until=until))
+    try:
+        bench.selected(only)
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="--only") from None
+    missed = bench.missed(bench.main(quick=quick, calls=calls, seconds=seconds, seed=seed, until=until, only=only))
     if missed and not quick:
         _stderr([f"target missed: {', '.join(missed)}"])
 

@@ -51,7 +51,7 @@ class WatchedClient:
             self._lost.clear()
             self._waiting.add(token)
         try:
-            if not self.client.servers.zids():
+            if not self.client.servers.serving():
                 raise RemoteLost(lost_message)
             return self.client.call(request, self.timeout, cancel=token)
         except ServiceCancelled:

@@ -24,6 +24,7 @@ import xxhash
 
 GID_SIZE = 16
 _HEADER = struct.Struct("<qq")  # sequence number, source timestamp
+_WHOLE = struct.Struct(f"<qqB{GID_SIZE}s")  # and the GID with its length byte
 ENCODED_SIZE = _HEADER.size + 1 + GID_SIZE
 _INT64 = (-(2**63), 2**63 - 1)
 
@@ -51,22 +52,43 @@ class Attachment:
 
 def encode(attachment: Attachment) -> bytes:
     """The attachment's 33 bytes."""
-    return _HEADER.pack(attachment.sequence, attachment.timestamp_ns) + bytes((GID_SIZE,)) + attachment.gid
+    return _WHOLE.pack(attachment.sequence, attachment.timestamp_ns, GID_SIZE, attachment.gid)
+
+
+def pack(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
+    """``encode`` of a sender's own values, without building (and checking) an Attachment per message.
+
+    ``gid`` must be an entity's 16-byte GID; struct.error for a number out of range.
+    """
+    return _WHOLE.pack(sequence, timestamp_ns, GID_SIZE, gid)
+
+
+def unpack(data: bytes | bytearray | memoryview) -> tuple[int, int, bytes]:
+    """The sequence number, timestamp and GID in ``data`` (as ``decode`` reads them); AttachmentError otherwise."""
+    raw = bytes(data)
+    if len(raw) == ENCODED_SIZE:
+        sequence, timestamp_ns, length, gid = _WHOLE.unpack(raw)
+        if length != GID_SIZE:
+            raise AttachmentError(f"attachment GID length byte is {length}, expected {GID_SIZE}")
+        return sequence, timestamp_ns, gid
+    if len(raw) == ENCODED_SIZE - 1:
+        sequence, timestamp_ns = _HEADER.unpack_from(raw)
+        return sequence, timestamp_ns, raw[_HEADER.size :]
+    raise AttachmentError(f"an attachment has {ENCODED_SIZE} bytes (or {ENCODED_SIZE - 1}), got {len(raw)}")
 
 
 def decode(data: bytes | bytearray | memoryview) -> Attachment:
     """The attachment in ``data`` (33 bytes, or 32 without the length byte); AttachmentError otherwise."""
-    raw = bytes(data)
-    if len(raw) == ENCODED_SIZE:
-        if raw[_HEADER.size] != GID_SIZE:
-            raise AttachmentError(f"attachment GID length byte is {raw[_HEADER.size]}, expected {GID_SIZE}")
-        gid = raw[_HEADER.size + 1 :]
-    elif len(raw) == ENCODED_SIZE - 1:
-        gid = raw[_HEADER.size :]
-    else:
-        raise AttachmentError(f"an attachment has {ENCODED_SIZE} bytes (or {ENCODED_SIZE - 1}), got {len(raw)}")
-    sequence, timestamp_ns = _HEADER.unpack_from(raw)
-    return Attachment(sequence, timestamp_ns, gid)
+    sequence, timestamp_ns, gid = unpack(data)
+    # struct read the fields, so they are in range: skip the checks __post_init__ makes of callers' values
+    attachment = object.__new__(Attachment)
+    _set(attachment, "sequence", sequence)
+    _set(attachment, "timestamp_ns", timestamp_ns)
+    _set(attachment, "gid", gid)
+    return attachment
+
+
+_set = object.__setattr__  # how a frozen dataclass sets its own fields
 
 
 def entity_gid(token: str) -> bytes:

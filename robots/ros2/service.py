@@ -11,9 +11,15 @@ client matches a reply to its call (rcl matches by sequence number too).
 
 What rmw_zenoh leaves to the layers above, decided here:
 
-- A server's handler runs on the server's own worker thread, one request at a time in arrival
-  order (a ROS executor's default), never on Zenoh's threads. Requests wait in a queue of the
-  QoS depth; with keep-last the oldest is dropped when it is full, as rmw_zenoh does.
+- A server's handler runs on the server's own thread, one request at a time in arrival order (a
+  ROS executor's default), never on Zenoh's threads. That thread waits in Zenoh's channel of
+  queries (``recv``, the GIL released), so a request reaches the handler with one thread woken,
+  as a raw queryable's does: a hand-off from a callback thread cost as much again as the rest of
+  a call. Requests that arrive while the handler runs wait in that channel; when the thread is
+  free it takes them all and, with keep-last, drops all but the newest QoS-depth ones with an
+  error reply saying the queue is full (the same requests rmw_zenoh's queue would drop, told
+  when the running request is done rather than as they arrive). Zenoh itself holds at most
+  ``INTAKE_CAPACITY`` queries for a busy server and ends the oldest beyond that unanswered.
 - A handler that raises, or a request that cannot be decoded, gets a Zenoh *error reply* with the
   reason: a botstage client raises ServiceError with it, an rmw_zenoh client logs it ("z_reply_is_ok
   returned False") and keeps waiting, as it would for a server that never answers. Nothing else
@@ -38,7 +44,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, InvalidStateError
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import zenoh
@@ -57,6 +63,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 QUERY_TIMEOUT_S = 1e9  # rmw_zenoh asks for the largest timeout: a call waits until it is answered or given up
+INTAKE_CAPACITY = 4096  # queries Zenoh keeps for a busy server (a ring: never blocks Zenoh's threads)
 Handler = Callable[[Any], Any]
 
 
@@ -131,7 +138,8 @@ class PendingRequest:
     def _take(self) -> zenoh.Query | None:
         with self._lock:
             query, self._query = self._query, None
-            return query
+        self._server._unanswered.discard(self)
+        return query
 
     def reply(self, response: Any) -> bool:
         """Send ``response`` (of the service's response type); False if already answered or the server closed."""
@@ -142,8 +150,8 @@ class PendingRequest:
         try:
             if self._server.closed:
                 return False
-            answer = Attachment(self.client.sequence, int(self._server.clock()), self.client.gid)
-            query.reply(self._server.key, payload, attachment=attachments.encode(answer))
+            answer = attachments.pack(self.client.sequence, int(self._server.clock()), self.client.gid)
+            query.reply(self._server.key, payload, attachment=answer)
             return True
         finally:
             query.drop()
@@ -166,56 +174,6 @@ class PendingRequest:
             query.drop()
 
 
-class _Worker:
-    """A thread that runs queued jobs one at a time; keep-last drops the oldest when full."""
-
-    def __init__(self, name: str, depth: int | None, on_drop: Callable[[Any], None]) -> None:
-        self._jobs: deque[Any] = deque()
-        self._depth, self._on_drop = depth, on_drop
-        self._ready = threading.Condition()
-        self._stopped = False
-        self._run: Callable[[Any], None] = lambda job: None
-        self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
-
-    def start(self, run: Callable[[Any], None]) -> None:
-        self._run = run
-        self._thread.start()
-
-    def put(self, job: Any) -> None:
-        dropped = None
-        with self._ready:
-            if self._stopped:
-                dropped = job
-            else:
-                if self._depth is not None and len(self._jobs) >= self._depth:
-                    dropped = self._jobs.popleft()
-                self._jobs.append(job)
-                self._ready.notify()
-        if dropped is not None:
-            self._on_drop(dropped)
-
-    def _loop(self) -> None:
-        while True:
-            with self._ready:
-                while not self._jobs and not self._stopped:
-                    self._ready.wait()
-                if self._stopped:
-                    return
-                job = self._jobs.popleft()
-            self._run(job)
-
-    def stop(self) -> list[Any]:
-        """Stop after the running job (waiting for it unless called from it); the jobs never run."""
-        with self._ready:
-            self._stopped = True
-            left = list(self._jobs)
-            self._jobs.clear()
-            self._ready.notify_all()
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join()
-        return left
-
-
 class ServiceServer(_Entity):
     """Answers calls of one service: ``handler(request) -> response`` on the server's own thread.
 
@@ -233,25 +191,51 @@ class ServiceServer(_Entity):
         super().__init__(node, entity_id, name, type_name, qos)
         self.clock = node.clock
         self._handler, self._deferred = handler, deferred
+        self._unanswered: set[PendingRequest] = set()  # a deferred handler's, kept until answered or closed
         self._stats_lock = threading.Lock()
-        self._stats = ServerStats()
-        depth = None if self.qos.history is History.KEEP_ALL else self.qos.depth
-        self._worker = _Worker(f"service {self.topic}", depth, self._dropped)
-        self._worker.start(self._handle)
-        self._declared.append(node.session.declare_queryable(self.key, self._on_query, complete=True))
+        self._received = self._bad_requests = self._dropped_count = self._handler_errors = 0
+        self._depth = None if self.qos.history is History.KEEP_ALL else self.qos.depth
+        capacity = max(INTAKE_CAPACITY, self._depth or 0)
+        queryable = node.session.declare_queryable(self.key, zenoh.handlers.RingChannel(capacity), complete=True)
+        self._queries = queryable.handler  # taken now: undeclared, the queryable no longer gives it
+        self._declared.append(queryable)
+        self._thread = threading.Thread(target=self._serve, name=f"service {self.topic}", daemon=True)
+        self._thread.start()
         self._declare_token()
 
     @property
     def stats(self) -> ServerStats:
         with self._stats_lock:
-            return self._stats
+            return ServerStats(self._received, self._bad_requests, self._dropped_count, self._handler_errors)
 
-    def _count(self, **deltas: int) -> None:
-        with self._stats_lock:
-            self._stats = replace(self._stats, **{k: getattr(self._stats, k) + v for k, v in deltas.items()})
+    def _serve(self) -> None:
+        """The server's thread: wait for queries, take all that wait, answer them in arrival order.
 
-    def _on_query(self, query: zenoh.Query) -> None:
-        """Zenoh's thread: decode and queue; never raise into Zenoh."""
+        Ends when the server closes (Zenoh closes the channel, and the queries in it end
+        unanswered); requests taken but not yet handled then end without a reply too.
+        """
+        queries, depth = self._queries, self._depth
+        waiting: deque[PendingRequest] = deque()
+        while not self._closed:
+            try:
+                if not waiting:
+                    self._admit(queries.recv(), waiting)
+                while (query := queries.try_recv()) is not None:
+                    self._admit(query, waiting)
+            except zenoh.ZError:  # the channel closed with the server
+                break
+            if depth is not None:
+                while len(waiting) > depth:
+                    self._dropped(waiting.popleft())
+            if self._closed:
+                break
+            if waiting:  # empty when what came was a bad request
+                self._handle(waiting.popleft())
+        for pending in waiting:
+            pending.drop()
+
+    def _admit(self, query: zenoh.Query, waiting: deque[PendingRequest]) -> None:
+        """Decode ``query`` and queue it (a bad one gets its error reply); never raises."""
         try:
             pending = self._take(query)
         except Exception:
@@ -259,8 +243,9 @@ class ServiceServer(_Entity):
             query.drop()
             return
         if pending is not None:
-            self._count(received=1)
-            self._worker.put(pending)
+            with self._stats_lock:  # plain counters: a new ServerStats per request cost more than the rest
+                self._received += 1
+            waiting.append(pending)
 
     def _take(self, query: zenoh.Query) -> PendingRequest | None:
         if self._closed:
@@ -272,15 +257,18 @@ class ServiceServer(_Entity):
             return None
         problem = None
         try:
-            if query.attachment is None:
+            attachment = query.attachment
+            if attachment is None:
                 raise AttachmentError("the request has no attachment")
-            client = attachments.decode(query.attachment.to_bytes())
-            payload = query.payload.to_bytes() if query.payload is not None else b""
+            client = attachments.decode(attachment.to_bytes())
+            body = query.payload
+            payload = body.to_bytes() if body is not None else b""
             request = types.deserialize(payload, self.service.request)
         except (AttachmentError, types.CdrError) as error:
             problem = f"service {self.topic}: bad request: {error}"
         if problem is not None:
-            self._count(bad_requests=1)
+            with self._stats_lock:
+                self._bad_requests += 1
             log.debug("%s", problem)
             query.reply_err(problem.encode("utf-8"))
             query.drop()
@@ -288,27 +276,35 @@ class ServiceServer(_Entity):
         return PendingRequest(self, query, request, client)
 
     def _dropped(self, pending: PendingRequest) -> None:
-        self._count(dropped=1)
+        with self._stats_lock:
+            self._dropped_count += 1
         pending.fail(f"service {self.topic}: request dropped, the server's queue of {self.qos.depth} is full")
 
     def _handle(self, pending: PendingRequest) -> None:
-        """The worker's thread: run the handler; a raise becomes an error reply with its reason."""
+        """The server's thread: run the handler; a raise becomes an error reply with its reason."""
         try:
             if self._deferred:
+                self._unanswered.add(pending)
                 self._handler(pending)
                 return
             response = self._handler(pending.request)
             if not pending.reply(response):
                 log.debug("service %s: the response to #%d was not sent", self.topic, pending.client.sequence)
         except Exception as error:
-            self._count(handler_errors=1)
+            with self._stats_lock:
+                self._handler_errors += 1
             log.exception("service %s: the handler raised", self.topic)
             pending.fail(f"service {self.topic}: the handler raised {type(error).__name__}: {error}")
 
     def close(self) -> None:
-        """Leave the graph, stop taking requests, and end the queued ones without a reply."""
+        """Leave the graph, stop taking requests, and end the queued ones without a reply.
+
+        Waits for a handler that is running to return, unless called from it.
+        """
         super().close()
-        for pending in self._worker.stop():
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join()
+        for pending in list(self._unanswered):
             pending.drop()
 
 
@@ -364,14 +360,14 @@ class ServiceClient(_Entity):
                 raise RuntimeError(f"client of {self.topic} is closed")
             self._sequence += 1
             sequence = self._sequence
-            sent = Attachment(sequence, int(self._clock()), self.gid)
+            sent = attachments.pack(sequence, int(self._clock()), self.gid)
             self._waiting.add(token)
         began = time.monotonic()
         try:
             replies = self._session.get(
                 self.key,
                 payload=payload,
-                attachment=attachments.encode(sent),
+                attachment=sent,
                 target=zenoh.QueryTarget.ALL_COMPLETE,
                 consolidation=zenoh.ConsolidationMode.NONE,
                 timeout=QUERY_TIMEOUT_S if timeout is None else timeout,
@@ -379,11 +375,12 @@ class ServiceClient(_Entity):
             )
             replied = timed_out = False
             for reply in replies:
-                if is_zenoh_timeout(reply):
+                sample = reply.ok
+                if sample is None and is_zenoh_timeout(reply):
                     timed_out = True
                     continue
                 replied = True
-                answer = self._answer(reply, sequence)
+                answer = self._answer(reply, sample, sequence)
                 if answer is not _UNMATCHED:
                     return answer
         except zenoh.ZError as error:
@@ -401,20 +398,22 @@ class ServiceClient(_Entity):
             else f"service {self.topic}: the reply could not be used"
         )
 
-    def _answer(self, reply: zenoh.Reply, sequence: int) -> Any:
-        """The response in a reply to call ``sequence``; ``_UNMATCHED`` for a reply to drop; raises ServiceError."""
-        if reply.err is not None:
-            reason = reply.err.payload.to_bytes().decode("utf-8", "replace")
+    def _answer(self, reply: zenoh.Reply, sample: zenoh.Sample | None, sequence: int) -> Any:
+        """The response in a reply (``sample`` is its ``ok``) to call ``sequence``; ``_UNMATCHED`` for a reply
+        to drop; raises ServiceError."""
+        if sample is None:
+            error = reply.err
+            reason = error.payload.to_bytes().decode("utf-8", "replace") if error is not None else ""
             raise ServiceError(reason or f"service {self.topic}: the server replied an error")
-        sample = reply.ok
         try:
-            if sample is None or sample.attachment is None:
+            attachment = sample.attachment
+            if attachment is None:
                 raise AttachmentError("a reply without an attachment")
-            answer = attachments.decode(sample.attachment.to_bytes())
+            answered, _, gid = attachments.unpack(attachment.to_bytes())
         except AttachmentError as error:
             log.debug("client of %s: dropped a reply: %s", self.topic, error)
             return _UNMATCHED
-        if answer.gid != self.gid or answer.sequence != sequence:
+        if gid != self.gid or answered != sequence:
             with self._calls_lock:
                 self.unmatched_replies += 1
             return _UNMATCHED
@@ -431,7 +430,7 @@ class ServiceClient(_Entity):
                 raise RuntimeError(f"client of {self.topic} is closed")
             self._sequence += 1
             call = Call(self._sequence)
-            sent = Attachment(call.sequence, int(self._clock()), self.gid)
+            sent = attachments.pack(call.sequence, int(self._clock()), self.gid)
         with self._calls_lock:
             self._calls[call.sequence] = call
         call.add_done_callback(self._done)
@@ -440,7 +439,7 @@ class ServiceClient(_Entity):
                 self.key,
                 zenoh.handlers.Callback(lambda r: self._on_reply(call, r), lambda: self._on_end(call), indirect=False),
                 payload=payload,
-                attachment=attachments.encode(sent),
+                attachment=sent,
                 target=zenoh.QueryTarget.ALL_COMPLETE,
                 consolidation=zenoh.ConsolidationMode.NONE,
                 timeout=QUERY_TIMEOUT_S,
@@ -574,6 +573,10 @@ class ServerWatch:
     def listen(self, on_change: Callable[[str, bool], None]) -> None:
         """Also call ``on_change(zid, alive)`` on each change (on Zenoh's thread)."""
         self._listeners.append(on_change)
+
+    def serving(self) -> bool:
+        """Whether any session serves the service now (``zids`` without building the set)."""
+        return bool(self._tokens)
 
     def zids(self) -> frozenset[str]:
         """The sessions that serve the service now."""

@@ -350,6 +350,18 @@ def _hash(type_name: str) -> str:
     return _interfaces().type_hash(type_name)
 
 
+_CHECKED: set[str] = set()  # message type names ``_known`` accepted: a type once known stays known
+
+
+def _known_message(type_name: str) -> str:
+    """``_known(type_name)``, checked once per name: serialising is on every call's hot path."""
+    if type_name in _CHECKED:
+        return type_name
+    name = _known(type_name)
+    _CHECKED.add(name)
+    return name
+
+
 def serialize(message: Any, type_name: str | None = None) -> bytes:
     """The message's CDR bytes, little endian, with the encapsulation header ``00 01 00 00``.
 
@@ -357,7 +369,7 @@ def serialize(message: Any, type_name: str | None = None) -> bytes:
     a silent reinterpretation.
     """
     own = getattr(message, "__msgtype__", None)
-    name = _known(type_name or own or "")
+    name = _known_message(type_name or own or "")
     if own != name:
         raise TypeError(f"a {own or type(message).__name__} message cannot be serialised as {name}")
     try:
@@ -368,7 +380,7 @@ def serialize(message: Any, type_name: str | None = None) -> bytes:
 
 def deserialize(data: bytes | bytearray | memoryview, type_name: str) -> Any:
     """The message of ``type_name`` in ``data`` (CDR with its encapsulation header), or a CdrError."""
-    name = _known(type_name)
+    name = _known_message(type_name)
     raw = bytes(data)
     if len(raw) < 4:
         raise CdrError(f"{len(raw)} bytes cannot hold a {name} message: CDR starts with a 4-byte header")

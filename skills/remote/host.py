@@ -15,20 +15,24 @@ cancels them all when it closes (their ``finally`` blocks stop what they started
 from __future__ import annotations
 
 import logging
-import random
 import threading
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from pydantic import BaseModel
+
+from robots.remote import values
 from skills.base import FAILURE, Outcome, SkillContext, SkillLogger
 from skills.execution import SkillExecution, describe_exception
 from skills.registry import Registry, UnknownSkillError
 from skills.remote.protocol import Call, State, Step, TickReply, TickRequest
+from skills.remote.rng import LazyRandom
 from skills.workers import Workers
 
 log = logging.getLogger(__name__)
 
 MAX_CALLS = 64
+MAX_PARAMS = 1024  # validated parameter sets kept (per node, skill and values); forgotten all at once past it
 
 
 class DrivenClock:
@@ -89,13 +93,9 @@ class _Run:
     """One call: its execution, its clock, its keys, and what it said since the last reply."""
 
     def __init__(self, host: SkillHost, request: TickRequest, call: Call) -> None:
-        skill = host.registry.get(call.skill)(call.params)
-        self.rng_state = call.rng_state
-        if call.rng_state is None:
-            self.rng = random.Random()
-        else:  # the node's generator where the mission's left it (a fixed seed: cheaper than the OS's entropy)
-            self.rng = random.Random(0)
-            self.rng.setstate(call.rng_state)
+        skill = host.registry.get(call.skill)(host.params(call))
+        # the node's generator where the mission left it, loaded only if the skill draws from it
+        self.rng = LazyRandom(call.rng_state)
         self.events: list[tuple[str, str, Any]] = []
         self.clock = DrivenClock(request)
         self.view = KeyView(call.node, call.reads, call.writes, self._record)
@@ -121,8 +121,12 @@ class _Run:
 
     def drawn(self) -> tuple[Any, ...] | None:
         """The generator's state if the call drew from it (the mission's node takes it back)."""
-        state = self.rng.getstate()
-        return state if self.rng_state is not None and state != self.rng_state else None
+        rng = self.rng
+        if not rng.used:  # the common case, for free: the state is what the mission sent
+            return None
+        initial = rng.initial()
+        state = rng.getstate()
+        return state if initial is not None and state != initial else None
 
     def take_events(self) -> tuple[tuple[str, str, Any], ...]:
         events, self.events = tuple(self.events), []
@@ -149,8 +153,26 @@ class SkillHost:
         self.workers = workers or Workers(name="botstage-remote-worker")
         self.max_calls = max_calls
         self._runs: dict[str, _Run] = {}
+        self._params: dict[tuple[str, str, str], BaseModel] = {}
         self._lock = threading.Lock()
         self._closed = False
+
+    def params(self, call: Call) -> BaseModel:
+        """The call's validated parameters, one object per node, skill and values (as a local node has).
+
+        Validating them costs more than the rest of starting a call, and a node calls with the
+        same ones each time; a local node's skill keeps one parameters object for all its runs,
+        and so does the host per node. Raises what validation raises.
+        """
+        given = call.params
+        key = (call.node, call.skill, values.dumps(given, "the parameters") if given else "")  # exact: tagged JSON
+        params = self._params.get(key)
+        if params is None:
+            params = self.registry.get(call.skill).validate_params(given)
+            if len(self._params) >= MAX_PARAMS:
+                self._params.clear()
+            self._params[key] = params
+        return params
 
     @property
     def calls(self) -> int:

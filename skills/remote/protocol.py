@@ -43,7 +43,9 @@ class Call:
     node: str
     inputs: dict[str, Any]
     params: dict[str, Any]
-    rng_state: tuple[Any, ...] | None = None  # the node's random.Random state, which persists across calls
+    # the node's random.Random state, which persists across calls; as the wire's packed bytes on a
+    # host (rng.LazyRandom unpacks them only if the skill draws)
+    rng_state: tuple[Any, ...] | bytes | None = None
     reads: frozenset[str] = frozenset()
     writes: frozenset[str] = frozenset()
 
@@ -59,7 +61,7 @@ class Call:
         )
 
     @classmethod
-    def from_json(cls, skill: str, node: str, text: str, rng_state: tuple[Any, ...] | None = None) -> Call:
+    def from_json(cls, skill: str, node: str, text: str, rng_state: tuple[Any, ...] | bytes | None = None) -> Call:
         data = values.loads(text, "the call")
         try:
             return cls(
@@ -75,13 +77,31 @@ class Call:
             raise values.ValueCodecError(f"the call: missing or malformed field {error}") from None
 
 
-def _packed(state: tuple[Any, ...] | None) -> np.ndarray:
+_NO_STATE = np.frombuffer(b"", np.uint8)
+
+
+def _packed(state: tuple[Any, ...] | bytes | None) -> np.ndarray:
     """The state as a ``uint8[]`` field holds it (rosbags takes numpy arrays); empty for none."""
-    return np.frombuffer(b"" if state is None else rng.pack(state), np.uint8)
+    if state is None:
+        return _NO_STATE
+    return np.frombuffer(state if isinstance(state, bytes) else rng.pack(state), np.uint8)
+
+
+def _checked(data: Any) -> bytes | None:
+    """The packed state from a message's ``uint8[]``, its shape checked; None when empty."""
+    packed = bytes(data)
+    if not packed:
+        return None
+    try:
+        return rng.check(packed)
+    except ValueError as error:
+        raise values.ValueCodecError(f"the random state: {error}") from None
 
 
 def _unpacked(data: Any) -> tuple[Any, ...] | None:
     """The state from a message's ``uint8[]`` (a numpy array) or bytes; None when empty."""
+    if not len(data):  # no state came back (the skill did not draw): the common case
+        return None
     packed = bytes(data)
     if not packed:
         return None
@@ -129,33 +149,48 @@ def request_fields(request: TickRequest) -> dict[str, Any]:
         "node": call.node if call else "",
         "call_json": call.to_json() if call else "",
         "rng": _packed(call.rng_state if call else None),
-        "blackboard_json": values.dumps(request.blackboard, "the blackboard"),
+        "blackboard_json": values.dumps(request.blackboard, "the blackboard") if request.blackboard else "",
         "reason": request.reason,
     }
 
 
+class _Mapped:
+    """A mapping's items as attributes (None when missing): the decoders read messages and mappings alike."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data: dict[str, Any]) -> None:
+        self._data = data
+
+    def __getattr__(self, name: str) -> Any:
+        return self._data.get(name)
+
+
+_STEPS = {int(step): step for step in Step}
+_STATES = {int(state): state for state in State}
+
+
 def request_of(fields: Any) -> TickRequest:
     """A request from ``SkillTick``'s request fields (a message or a mapping); ValueError if malformed."""
-    get = fields.get if isinstance(fields, dict) else lambda name: getattr(fields, name)
-    try:
-        step = Step(int(get("step")))
-    except ValueError:
-        raise values.ValueCodecError(f"step {get('step')!r} is not one of {[s.name for s in Step]}") from None
-    call_json = str(get("call_json"))
-    call = Call.from_json(str(get("skill")), str(get("node")), call_json, _unpacked(get("rng"))) if call_json else None
-    board = values.loads(str(get("blackboard_json")), "the blackboard") if get("blackboard_json") else {}
+    f = _Mapped(fields) if isinstance(fields, dict) else fields  # a message's fields are read directly
+    step = _STEPS.get(int(f.step))
+    if step is None:
+        raise values.ValueCodecError(f"step {f.step!r} is not one of {[s.name for s in Step]}")
+    call_json = str(f.call_json)
+    call = Call.from_json(str(f.skill), str(f.node), call_json, _checked(f.rng)) if call_json else None
+    board = values.loads(str(f.blackboard_json), "the blackboard") if f.blackboard_json else {}
     if not isinstance(board, dict):
         raise values.ValueCodecError("the blackboard: not a mapping of keys to values")
     return TickRequest(
-        str(get("call_id")),
+        str(f.call_id),
         step,
-        float(get("time")),
-        int(get("ticks")),
-        float(get("period")),
-        bool(get("simulated")),
+        float(f.time),
+        int(f.ticks),
+        float(f.period),
+        bool(f.simulated),
         call,
         board,
-        str(get("reason")),
+        str(f.reason),
     )
 
 
@@ -172,18 +207,17 @@ def reply_fields(reply: TickReply) -> dict[str, Any]:
 
 
 def reply_of(fields: Any) -> TickReply:
-    """A reply from ``SkillTick``'s response fields; ValueError if malformed."""
-    get = fields.get if isinstance(fields, dict) else lambda name: getattr(fields, name)
-    try:
-        state = State(int(get("state")))
-    except ValueError:
-        raise values.ValueCodecError(f"state {get('state')!r} is not one of {[s.name for s in State]}") from None
-    outputs = values.loads(get("outputs_json"), "the outputs") if get("outputs_json") else {}
-    events = values.loads(get("events_json"), "the events") if get("events_json") else []
-    drawn = _unpacked(get("rng"))
+    """A reply from ``SkillTick``'s response fields (a message or a mapping); ValueError if malformed."""
+    f = _Mapped(fields) if isinstance(fields, dict) else fields
+    state = _STATES.get(int(f.state))
+    if state is None:
+        raise values.ValueCodecError(f"state {f.state!r} is not one of {[s.name for s in State]}")
+    outputs = values.loads(f.outputs_json, "the outputs") if f.outputs_json else {}
+    events = values.loads(f.events_json, "the events") if f.events_json else []
+    drawn = _unpacked(f.rng)
     if not isinstance(outputs, dict) or not isinstance(events, list):
         raise values.ValueCodecError("a reply's outputs must be a mapping and its events a list")
-    return TickReply(state, str(get("outcome")), str(get("reason")), outputs, tuple(tuple(e) for e in events), drawn)
+    return TickReply(state, str(f.outcome), str(f.reason), outputs, tuple(map(tuple, events)) if events else (), drawn)
 
 
 class DirectLink:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import uuid
+import os
 from typing import Any, Protocol
 
 from robots.remote import values
@@ -66,7 +66,7 @@ def remote_of(real: type[Skill], link: SkillLink) -> type[Skill]:
     def run(self: Skill, ctx: SkillContext, **inputs: Any) -> SkillRun:
         reads, writes = node_keys(real, inputs)
         keys = reads | writes
-        call_id = uuid.uuid4().hex
+        call_id = os.urandom(16).hex()  # unique as a uuid4's hex, without building a UUID per call
         clock = ctx.clock
 
         def request(step: Step, call: Call | None = None, reason: str = "") -> TickRequest:
