@@ -31,13 +31,14 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from missions.check import Checked, check
 from robots.interfaces import INTERFACES
 from robots.located_yaml import Loaded, Location, Problem, load_document
-from robots.profile import load_profile, profile_path
+from robots.profile import Profile, load_profile, profile_path
 from skills.registry import Registry, suggest
 
 NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")  # a ROS 2 node name (rcl's rule)
 ENDPOINT = re.compile(r"(tcp|udp|tls|quic)/(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):\d{1,5}\Z")
 ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"  # rmw_zenohd's port, on loopback unless the file says otherwise
 SIMULATED = frozenset({"sim"})  # backends that are a whole world: one process holds it
+OPERATOR = "operator"  # not a process: the identity (certificate) teleop drives a secured deployment's robot with
 
 
 class _Strict(BaseModel):
@@ -97,6 +98,13 @@ class CheckedDeployment:
         assert self.deployment is not None and self.mission is not None
         served = {s: name for name, p in self.deployment.processes.items() for s in p.skills or ()}
         return {skill: served.get(skill, self.mission_process) for skill in self.mission.skills_used}
+
+    def robot_profile(self) -> Profile | None:
+        """The mission's robot profile, as the robot process opens it (None: the mission names no robot)."""
+        assert self.mission is not None
+        robot = self.mission.mission.robot if self.mission.mission is not None else None
+        found = profile_path(robot, self.mission.path.parent) if robot is not None else None
+        return load_profile(found)[0] if found is not None else None
 
     def interface_hosts(self) -> dict[str, str]:
         """Interface name -> the process that serves it."""
@@ -162,6 +170,12 @@ def _check_processes(deployment: Deployment, out: _Out) -> None:
     for name, process in deployment.processes.items():
         if not NODE_NAME.match(name):
             out.at(("processes", name), f"process name {name!r} is not a ROS node name", "letters, digits and '_'")
+        if name == OPERATOR:
+            out.at(
+                ("processes", name),
+                f"process name {OPERATOR!r} is taken: it is the operator's (teleop's) identity in a secured deployment",
+                "give the process another name",
+            )
         for i, endpoint in enumerate(process.listen):
             if not ENDPOINT.match(endpoint):
                 out.at(

@@ -219,7 +219,9 @@ def open_served(
     nothing, until someone drives it. ``ConnectionError`` if the odometry does not come within
     ``ready_timeout`` seconds (of the transport's own monotonic time: the run's clock is not started).
     ``security`` (robots/ros2/security.py's options: mutual TLS with a certificate of the
-    deployment's authority) reaches a secured deployment's robot: ``tls/`` endpoints only.
+    deployment's authority) reaches a secured deployment's robot: ``tls/`` endpoints only, and
+    its ``cmd_vel`` arrives only with the operator's certificate or the mission's
+    (missions/distributed/security.py); with another, the robot never moves nor answers.
     """
     from robots.backend import OpenRequest
     from robots.ros2.backend import Ros2Options
@@ -255,7 +257,8 @@ def open_served(
                     f"no odometry within {ready_timeout:g} s on {odometry.topic} through "
                     f"{', '.join(options.connect)} (domain {options.domain_id}): is the robot served there "
                     "(botstage serve robot, a deployment's robot process with `topics: true`), is no mission "
-                    "driving it just now, and, for a secured deployment, are the endpoints tls/ with --certs?"
+                    "driving it just now, and, for a secured deployment, are the endpoints tls/ with --certs, and is "
+                    "the certificate one it lets drive (the operator's, certs/operator, or the mission's)?"
                 )
             backend.devices["drive"].stop()
         if odometry is not None:  # show the robot's own odometry: a start given here means nothing to it

@@ -11,8 +11,8 @@ real Zenoh sessions in ROS 2's wire format:
   killed while walking leaves it to the robot process's 0.5 s watchdog;
 - the Pi's process on its own backend (``--backend emulator``: the emulated NyBoard, the driver
   on a pty) is walked the same way, and the patrol runs over it in real time;
-- a secured Pi (mutual TLS, across machines) is driven by a teleop with the PC's certificate,
-  and by nobody without one.
+- a secured Pi (mutual TLS, across machines) is driven by a teleop with the operator's
+  certificate, and by nobody without one.
 
 What is asserted is what happened (the robot moved, it stopped, who stopped it, the traces),
 never how long it took on the wall: a failsafe bounds each wait.
@@ -36,7 +36,7 @@ from typing import Any
 import pytest
 
 from missions.cli.distributed import free_port, process_commands
-from missions.deployment import check_deployment
+from missions.deployment import OPERATOR, check_deployment
 from missions.distributed.operator import Operator
 from missions.distributed.supervisor import Supervisor
 from missions.places import robot_place
@@ -365,8 +365,8 @@ def test_the_patrol_over_the_pi_s_process_on_the_emulated_nyboard_runs_in_real_t
 
 
 def test_a_secured_pi_is_driven_by_a_teleop_with_a_certificate_of_the_deployment_only(tmp_path: Path) -> None:
-    make_certificates(tmp_path / "certs", ["pi", "pc"])
-    operator = security_options(Credentials.in_folder(tmp_path / "certs" / "pc"))  # the operator's PC's
+    make_certificates(tmp_path / "certs", ["pi", "pc", OPERATOR])  # as `botstage certs --deployment` does
+    operator = security_options(Credentials.in_folder(tmp_path / "certs" / OPERATOR))  # teleop's identity
     profile, _, pose = robot_place("bittle", "restaurant", "dock")
     with Pi(tmp_path / "pi", certs=tmp_path / "certs") as secured:
         with pytest.raises(ConnectionError, match="no odometry within 3 s"):  # no certificate: no session at all

@@ -262,8 +262,10 @@ def test_botstage_certs_takes_a_deployments_processes(tmp_path: Path, run_certs:
         "kinect_speech_computer",
         "upload_computer",
         "display_computer",
+        "operator",  # teleop's identity, which the deployment's policy lets drive the robot
     }
     assert {path.name for path in tmp_path.iterdir() if path.is_dir()} == expected
+    assert "operator: " in result.output and "(teleop's" in result.output
 
 
 @pytest.mark.parametrize(

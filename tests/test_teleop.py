@@ -121,6 +121,24 @@ def test_teleop_command_line_session_on_the_simulator() -> None:
     assert bad.exit_code == 2 and "serial port" in bad.output
 
 
+def test_teleop_with_certs_takes_the_operators_folder_or_the_one_botstage_certs_wrote(tmp_path: Path) -> None:
+    """``--certs`` names the operator's identity (missions/distributed/security.py): its own folder, or the
+    deployment's certificate folder with ``operator/`` in it; without one it says how to make it."""
+    from missions.distributed.security import credentials
+    from robots.ros2.certs import make_certificates
+
+    make_certificates(tmp_path / "certs", ["pi", "operator"])
+    assert credentials(tmp_path / "certs", "operator").cert == tmp_path / "certs" / "operator" / "cert.pem"
+    assert credentials(tmp_path / "certs" / "operator", "operator").cert.parent == tmp_path / "certs" / "operator"
+    (tmp_path / "empty").mkdir()
+    missing = CliRunner().invoke(
+        app, ["teleop", "bittle", "--connect", "tls/127.0.0.1:7447", "--certs", str(tmp_path / "empty")]
+    )
+    assert missing.exit_code == 2
+    said = " ".join(missing.output.split())
+    assert "no TLS credentials for 'operator'" in said and "botstage certs" in said and "--deployment" in said
+
+
 def test_teleop_over_the_emulated_board_in_a_real_terminal() -> None:
     """The keys come from a terminal (a pty in cbreak mode); the robot behind is the emulator."""
     master, slave = os.openpty()

@@ -3,7 +3,9 @@
 The processes come from ``--process`` or a deployment file's ``processes:`` (checked whole first);
 each gets ``OUT_DIR/<process>/{cert.pem,key.pem,ca.pem}`` for Zenoh's mutual TLS
 (robots.ros2.security), with its hosts as subject alternative names: loopback always, the
-deployment's ``host:`` and listen addresses, and ``--host``. An authority already in OUT_DIR signs
+deployment's ``host:`` and listen addresses, and ``--host``. A deployment's folder also gets
+``OUT_DIR/operator/``: teleop's identity, which the deployment's policy lets drive the robot
+(missions/distributed/security.py). An authority already in OUT_DIR signs
 the new certificates and is never replaced unless ``--new-ca`` says so (every certificate it signed
 would stop working). Private keys are written 0600 and never printed.
 """
@@ -45,7 +47,11 @@ def certs(
         [], "--process", metavar="NAME", help="a process to make a certificate for (repeatable)"
     ),
     deployment: Path | None = typer.Option(
-        None, "--deployment", metavar="FILE", help="make one for every process of this deployment", callback=input_file
+        None,
+        "--deployment",
+        metavar="FILE",
+        help="make one for every process of this deployment, and the operator's (teleop's) in OUT_DIR/operator",
+        callback=input_file,
     ),
     days: int = typer.Option(365, help="how long the processes' certificates are valid", callback=DAYS),
     host: list[str] = typer.Option(
@@ -60,9 +66,12 @@ def certs(
     ),
 ) -> None:
     """Make a certificate authority and a certificate per process for Zenoh's mutual TLS."""
+    from missions.deployment import OPERATOR
     from robots.ros2.certs import CA_KEY, CertificateError, make_certificates, subject_alternative_names
 
     hosts = _deployment_processes(deployment) if deployment is not None else {}
+    if deployment is not None:
+        hosts.setdefault(OPERATOR, [])  # teleop's identity: its policy lets it drive the robot
     for name in process:
         hosts.setdefault(name, [])
     if not hosts:
@@ -84,7 +93,8 @@ def certs(
     made = "made" if written.authority_created else "kept"
     _say(f"certificate authority: {written.authority} ({made}; keep {out_dir / CA_KEY} off the robots)")
     for name, files in written.processes.items():
-        _say(f"{name}: {files.cert.parent}/ (ca.pem, cert.pem, key.pem); hosts {', '.join(_hosts(hosts[name]))}")
+        role = " (teleop's: botstage teleop ... --certs this folder)" if name == OPERATOR else ""
+        _say(f"{name}: {files.cert.parent}/ (ca.pem, cert.pem, key.pem); hosts {', '.join(_hosts(hosts[name]))}{role}")
 
 
 def _say(line: str) -> None:

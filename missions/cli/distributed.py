@@ -114,10 +114,12 @@ def process_commands(
 
 
 def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
-    """``folder`` with a certificate for each process (loopback hosts), made if missing; its authority kept."""
+    """``folder`` with a certificate for each process and the operator (loopback hosts), made if missing;
+    its authority kept. The operator's is teleop's: ``botstage teleop --certs OUT/certs/operator``."""
+    from missions.deployment import OPERATOR
     from robots.ros2.certs import Credentials, make_certificates
 
-    missing = [name for name in processes if Credentials.in_folder(folder / name).missing()]
+    missing = [name for name in [*processes, OPERATOR] if Credentials.in_folder(folder / name).missing()]
     if missing:
         make_certificates(folder, missing)
     return folder
@@ -171,7 +173,8 @@ def up(
     port: int = typer.Option(0, help="the router's loopback port (0: a free one)", min=0, max=65535),
     secure: bool = typer.Option(
         False,
-        help="mutual TLS and the deployment's access policy, certificates made in OUT/certs (kept for next runs)",
+        help="mutual TLS and the deployment's access policy, certificates made in OUT/certs (kept for next runs; "
+        "OUT/certs/operator is teleop's)",
     ),
     monitor: bool = typer.Option(
         False, "--monitor", help="serve a page with the processes and the mission's live monitor"

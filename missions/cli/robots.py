@@ -173,15 +173,12 @@ def _open_served(
 
     security = None
     if certs is not None:
-        from missions.distributed.security import SecurityError, secured
-        from robots.ros2.certs import Credentials
+        from missions.deployment import OPERATOR
+        from missions.distributed.security import SecurityError, credentials, secured
         from robots.ros2.security import security_options
 
-        found = Credentials.in_folder(certs)
-        if found.missing():
-            listed = ", ".join(str(path) for path in found.missing())
-            raise _fail(f"error: no TLS credentials in {certs} (missing {listed}): give a process's folder", 2)
         try:
+            found = credentials(certs, OPERATOR)  # the operator's folder, or the one `botstage certs` wrote
             secured(connect, connect)
         except SecurityError as error:
             raise _fail(f"error: {error}", 2) from None
@@ -236,8 +233,9 @@ def teleop(
     certs: Path | None = typer.Option(
         None,
         metavar="DIR",
-        help="with --connect to a secured deployment: mutual TLS with the certificate in DIR (the operator's "
-        "machine's process folder that `botstage certs` wrote, e.g. certs/pc); tls/ endpoints only",
+        help="with --connect to a secured deployment: mutual TLS with the certificate in DIR: the operator's "
+        "folder `botstage certs --deployment` wrote (certs/operator, or certs itself), which the deployment lets "
+        "drive the robot; tls/ endpoints only",
     ),
 ) -> None:
     """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits;

@@ -4,7 +4,9 @@ A robot process of a deployment serves its devices to the mission call by call, 
 simulation the mission's ticks move its world (missions/distributed/process.py). With ``topics:
 true`` it also serves the robot's interfaces as ROS 2 topics (robots/ros2/robot_server.py:
 ``cmd_vel`` in; ``odom``, ``battery_state``, ``image_raw``... out), so an operator drives it with
-``botstage teleop ROBOT --connect ENDPOINT`` or any ROS 2 teleop, as the Bittle article's PC did.
+``botstage teleop ROBOT --connect ENDPOINT`` or any ROS 2 teleop, as the Bittle article's PC did
+(secured, with the operator's certificate: only it and the mission's process may publish the
+robot's command topics, missions/distributed/security.py).
 
 Who drives, decided here:
 
