@@ -7,6 +7,8 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +65,9 @@ def test_the_weights_are_small_and_say_how_they_were_made() -> None:
     assert meta["voices"] and not {train_speech._normal(v) for v in meta["voices"]} & taken
     assert not set(meta["speeds"]) & {*bench_speech.SPEEDS, *bench_speech.TUNE_SPEEDS}
     assert not set(meta["pitches"]) & {*bench_speech.PITCHES, *bench_speech.TUNE_PITCHES}
-    assert meta["tuning"]["voices"] == list(bench_speech.TUNE_VOICES)
+    assert meta["tuning"]["voices"] == train_speech.tuning_voices()
+    tuned = {train_speech._normal(v) for v in meta["tuning"]["voices"]}
+    assert not {train_speech._normal(v) for v in meta["voices"]} & tuned
 
 
 def test_training_keeps_the_benchmark_and_tuning_sets_out() -> None:
@@ -73,6 +77,11 @@ def test_training_keeps_the_benchmark_and_tuning_sets_out() -> None:
     assert len(voices) == train_speech.TRAIN_VOICES and not {train_speech._normal(v) for v in voices} & taken
     assert "en-gb+klatt" not in voices  # en+klatt, the benchmark's, under its other name
     assert all("+" in v for v in voices)
+    tuning = train_speech.tuning_voices()
+    assert tuning[: len(bench_speech.TUNE_VOICES)] == list(bench_speech.TUNE_VOICES)
+    assert len(set(tuning)) == len(bench_speech.TUNE_VOICES) + train_speech.MORE_TUNE_VOICES
+    heard = {train_speech._normal(v) for v in (*voices, *bench_speech.VOICES)}
+    assert not {train_speech._normal(v) for v in tuning} & heard
 
 
 def test_a_training_clip_is_heard_four_ways_the_same_every_time() -> None:
@@ -205,3 +214,31 @@ def test_phrases_in_unheard_voices_are_not_taken_for_commands() -> None:
             if heard.found is not None:
                 accepted.append((voice, text, heard.found))
     assert len(accepted) <= 1, accepted
+
+
+def test_thresholds_chosen_again_keep_the_network(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`botstage speech train --thresholds-only`: the tuning set decides the thresholds, the weights stay."""
+    path = tmp_path / "commands.npz"
+    shutil.copy(weights_path(), path)
+    before = Classifier.load(path)
+    frames = np.random.default_rng(5).normal(0, 1, (6, 96)).astype(np.float16)
+    conditions = len(train_speech.TUNE_CONDITIONS)
+    tuning = [(label, [[(frames, 0.6)]] * conditions) for label in (*COMMANDS, None)]
+    monkeypatch.setattr(train_speech, "tuning_set", lambda workers, cache: tuning)
+    result = train_speech.rethreshold(path)
+    after = Classifier.load(path)
+    assert all(
+        np.array_equal(w, w2) and np.array_equal(b, b2)
+        for (w, b), (w2, b2) in zip(before.layers, after.layers, strict=True)
+    )
+    assert np.array_equal(before.mean, after.mean) and after.meta["voices"] == before.meta["voices"]
+    assert tuple(result["thresholds"].values()) == pytest.approx(after.thresholds)
+    assert after.meta["tuning"]["measured"] == result["tuning"]
+    assert after.meta["tuning"]["voices"] == train_speech.tuning_voices()
+
+
+def test_thresholds_only_needs_weights_to_keep(tmp_path: Path) -> None:
+    missing = tmp_path / "none.npz"
+    command = [sys.executable, "-c", "from missions.cli import app; app()", "speech", "train", "--thresholds-only"]
+    result = subprocess.run([*command, "--out", str(missing)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and f"no weights at {missing}" in result.stderr

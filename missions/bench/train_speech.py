@@ -69,6 +69,24 @@ Second session (the benchmark had been run once, at step 4: 93 / 91 / 81 / 88 / 
    back. On step 7's model, 95 / 100 / 95 / 97 / 89 at 1.2 / 2.5 / 4.0 / 2.9 / 3.3 against one
    threshold's 90 / 93 / 87 / 95 / 82 at 0.4 / 2.1 / 4.4 / 1.5 / 2.9 (0.98, over the budget).
 9. Clipping in the augmentation (an overdriven microphone on one copy in six).
+
+Third session (the benchmark had been run once more, on step 9's weights: 96.7 / 96.7 / 92.7 /
+94.7 / 89.3 at 0.0 %, CANCEL held at the grid's top, 0.99):
+
+10. Phoneme near misses as negatives, openWakeWord's adversarial phrases: each command spelt in
+    espeak-ng's phonemes with the stressed vowel, then also the consonant before or after it,
+    changed to each other one (``[[k'Ens@L]]``; none spelling a benchmark or tuning phrase), 24
+    a voice. On the ten tuning voices: 91 / 93 / 92 / 95 / 89 (vowel and onset), 95 / 96 / 93 /
+    98 / 94 (and coda), against 96 / 98 / 94 / 97 / 93 for step 9's: not better, and twenty
+    commands a cell could not tell them apart.
+11. So the tuning set grew: 30 more voices (``tuning_voices``, drawn from the pairs neither
+    training nor the benchmark uses), 80 commands a command and condition. There step 9's
+    network finds 465 (summed over the conditions), step 10's 452 and 443: near misses dropped.
+    Step 9's thresholds break the rule there (4.5 % and 4.3 % at 10 dB); chosen again on the 40
+    voices (``botstage speech train --thresholds-only``): PHOTO 0.93, YES 0.97, WHATSUP 0.95,
+    CANCEL 0.96, CIAO 0.92, finding 95.8 / 95.0 / 89.5 / 95.2 / 89.5 at 1.2-4.0 %, which is also
+    close to what the benchmark had measured on step 9: the larger set predicts it. The
+    benchmark, run once on these: 98.7 / 98.0 / 95.3 / 96.3 / 95.0 at 0.0-0.1 %.
 """
 
 from __future__ import annotations
@@ -120,6 +138,7 @@ TRAIN_PITCHES = (25, 42, 58, 75)
 COPIES = 4  # the room-noise copy and three augmented ones
 AUGMENTATION = 2  # augment()'s version, part of the cache key: 2 added clipping
 NEGATIVES_PER_VOICE = 64
+MORE_TUNE_VOICES = 30  # drawn beside bench_speech's ten TUNE_VOICES (see tuning_voices)
 TUNE_FALSE_ACCEPTS = 4.0  # % of the tuning phrases, in every tuning condition (see the docstring)
 L2 = 1e-3
 HIDDEN = 64  # units in the hidden layer; 0: a softmax regression
@@ -186,6 +205,16 @@ def training_voices(n: int = TRAIN_VOICES) -> list[str]:
     return [pairs[i] for i in sorted(rng.choice(len(pairs), size=n, replace=False))]
 
 
+def tuning_voices(n: int = MORE_TUNE_VOICES) -> list[str]:
+    """The tuning voices: bench_speech's ``TUNE_VOICES`` and ``n`` pairs drawn from those that
+    neither training (``training_voices``) nor the benchmark uses. Ten voices gave 20 commands a
+    command and condition, too few to tell two models' curves apart."""
+    taken = {_normal(v) for v in (*VOICES, *TUNE_VOICES, *training_voices())}
+    pairs = [f"{b}+{v}" for b, v in itertools.product(BASES, VARIANTS) if _normal(f"{b}+{v}") not in taken]
+    rng = np.random.default_rng(SEED + 3)
+    return [*TUNE_VOICES, *(pairs[i] for i in sorted(rng.choice(len(pairs), size=n, replace=False)))]
+
+
 def has_command_word(phrase: str) -> bool:
     """True when ``phrase`` says a command as whole words ("yes please", "photo album"): to the
     robot that is the command said with more around it, so it is neither trained as ``other``
@@ -202,6 +231,9 @@ def _check_disjoint() -> None:
     with_command = [p for p in (*NEGATIVES, *TUNE_PHRASES) if has_command_word(p)]
     if with_command:
         raise ValueError(f"negatives with a command word in them (neither command nor other): {with_command}")
+    heard = {_normal(v) for v in training_voices()} & {_normal(v) for v in (*VOICES, *tuning_voices())}
+    if heard:
+        raise ValueError(f"training voices the benchmark or the tuning set uses: {sorted(heard)}")
     if set(TRAIN_SPEEDS) & {130, 170, 210, *TUNE_SPEEDS} or set(TRAIN_PITCHES) & {35, 65, *TUNE_PITCHES}:
         raise ValueError("a training speed or pitch is the benchmark's or the tuning set's")
 
@@ -408,7 +440,7 @@ def tuning_set(workers: int, cache: Path | None = None) -> Tuning:
     the clips themselves (a change of tuning voice or phrase is computed afresh, never reused)."""
     made = []
     seed = 0
-    for voice, speed, pitch in itertools.product(TUNE_VOICES, TUNE_SPEEDS, TUNE_PITCHES):
+    for voice, speed, pitch in itertools.product(tuning_voices(), TUNE_SPEEDS, TUNE_PITCHES):
         for label, text in [*SAY.items(), *((None, p) for p in TUNE_PHRASES)]:
             seed += 1
             made.append((label, (text, voice, speed, pitch, seed)))
@@ -515,10 +547,8 @@ def main(out: Path | None = None, quick: bool = False, cache: Path | None = None
     classifier = Classifier(mean, scale, layers, (0.5,) * len(COMMANDS), {})
     train_acc = float(np.mean(np.argmax(classifier.probabilities(x), 1) == y))
     print(f"fitted: training accuracy {100 * train_acc:.1f} %, {time.perf_counter() - start:.0f} s", flush=True)
-    tuning = tuning_set(workers, cache)
-    thresholds, measured = choose_thresholds(judged(classifier, tuning))
+    thresholds, measured = tuned_thresholds(classifier, workers, cache)
     named = dict(zip(COMMANDS, thresholds, strict=True))
-    print(f"thresholds {named} on the tuning voices: {json.dumps(measured)}", flush=True)
     meta = {
         "trained_by": "botstage speech train (missions/bench/train_speech.py)" + (" --quick" if quick else ""),
         "voices": voices,
@@ -531,10 +561,7 @@ def main(out: Path | None = None, quick: bool = False, cache: Path | None = None
         "l2": L2,
         "hidden": HIDDEN,
         "training_accuracy": round(100 * train_acc, 2),
-        "threshold_rule": f"per command, greedy: most tuning commands with false accepts <= {TUNE_FALSE_ACCEPTS} % "
-        "in every tuning condition",
-        "tuning": {"voices": list(TUNE_VOICES), "speeds": list(TUNE_SPEEDS), "pitches": list(TUNE_PITCHES),
-                   "measured": measured},
+        **tuning_meta(measured),
         "espeak_ng": os.popen("espeak-ng --version").read().strip(),
     }  # fmt: skip
     final = Classifier(mean, scale, layers, thresholds, meta)
@@ -542,3 +569,38 @@ def main(out: Path | None = None, quick: bool = False, cache: Path | None = None
     final.save(path)
     print(f"wrote {path} ({path.stat().st_size} bytes) in {time.perf_counter() - start:.0f} s", flush=True)
     return {"thresholds": named, "tuning": measured, "training_accuracy": train_acc}
+
+
+def tuned_thresholds(classifier: Classifier, workers: int, cache: Path | None) -> tuple[tuple[float, ...], dict]:
+    """``classifier``'s thresholds chosen on the tuning set, and what they find there."""
+    thresholds, measured = choose_thresholds(judged(classifier, tuning_set(workers, cache)))
+    named = dict(zip(COMMANDS, thresholds, strict=True))
+    print(f"thresholds {named} on the tuning voices: {json.dumps(measured)}", flush=True)
+    return thresholds, measured
+
+
+def tuning_meta(measured: dict) -> dict[str, Any]:
+    """How the thresholds were chosen, for the weights' ``meta``."""
+    return {
+        "threshold_rule": f"per command, greedy: most tuning commands with false accepts <= {TUNE_FALSE_ACCEPTS} % "
+        "in every tuning condition",
+        "tuning": {
+            "voices": tuning_voices(),
+            "speeds": list(TUNE_SPEEDS),
+            "pitches": list(TUNE_PITCHES),
+            "measured": measured,
+        },
+    }
+
+
+def rethreshold(path: Path | None = None, cache: Path | None = None, workers: int = 2) -> dict[str, Any]:
+    """Choose the thresholds of the weights at ``path`` (the shipped ones by default) again on the
+    tuning set, keeping the network: what a change of tuning set or rule needs, without a refit."""
+    _check_disjoint()
+    path = path or weights_path()
+    old = Classifier.load(path)
+    thresholds, measured = tuned_thresholds(old, workers, cache)
+    meta = {**old.meta, **tuning_meta(measured)}
+    Classifier(old.mean, old.scale, old.layers, thresholds, meta).save(path)
+    print(f"wrote {path}: thresholds {[round(t, 2) for t in old.thresholds]} -> {list(thresholds)}", flush=True)
+    return {"thresholds": dict(zip(COMMANDS, thresholds, strict=True)), "tuning": measured}

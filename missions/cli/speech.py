@@ -59,6 +59,12 @@ def speech_train(
     ),
     cache: Path = typer.Option(None, help="a folder to keep the training features in between runs"),
     workers: int = typer.Option(2, min=1, help="processes synthesising and embedding"),
+    thresholds_only: bool = typer.Option(
+        False,
+        "--thresholds-only",
+        help="keep the network of the weights at --out (default: the shipped ones) and choose its thresholds "
+        "again on the tuning set",
+    ),
 ) -> None:
     """Train the command classifier on espeak-ng speech (needs espeak-ng); see missions/bench/train_speech.py."""
     import shutil
@@ -67,4 +73,9 @@ def speech_train(
 
     if shutil.which("espeak-ng") is None:
         raise _fail("error: espeak-ng is missing: training makes its audio with it (apt-get install espeak-ng)", 1)
+    if thresholds_only:
+        if out is not None and not out.exists():
+            raise _fail(f"error: --thresholds-only: no weights at {out}", 2)
+        train_speech.rethreshold(out, cache, workers)
+        return
     train_speech.main(out, quick, cache, workers)

@@ -30,8 +30,9 @@ tanh units, a softmax over six classes: the five commands and ``other``), traine
 speech train`` (missions/bench/train_speech.py; how, and on which voices, is in that file and the
 weights' ``meta``). Its confidence is the softmax probability of the best class; a command is
 accepted when it is the best class and its probability reaches that command's threshold, each
-chosen on tuning voices (espeak-ng voices that neither training nor the benchmark uses): a word
-that sounds like one command ("yet") raises that command's threshold, not the others'.
+chosen on tuning voices (forty espeak-ng voices that neither training nor the benchmark uses;
+ten gave too few trials to choose well): a word that sounds like one command ("yet") raises
+that command's threshold, not the others'.
 
 ONNX Runtime runs on one thread (``intra_op_num_threads=1``): the embedding of the same audio
 is then the same on every run, and decoding leaves the other cores to the tick and the rest.
