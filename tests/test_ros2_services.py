@@ -132,6 +132,21 @@ def add_request(a: int, b: int) -> Any:
     return types.message_class(f"{ADD}_Request")(a=a, b=b)
 
 
+class Held:
+    """A handler that adds, but holds each request until released: ``entered`` once one is held,
+    ``order`` the ``a`` of each in the order handled."""
+
+    def __init__(self) -> None:
+        self.entered, self.release = threading.Event(), threading.Event()
+        self.order: list[int] = []
+
+    def __call__(self, request: Any) -> Any:
+        self.order.append(request.a)
+        self.entered.set()
+        self.release.wait(FAILSAFE_S)
+        return add(request)
+
+
 def test_a_call_goes_round_trip_and_the_graph_lists_both_ends(nodes: tuple[Ros2Node, Ros2Node]) -> None:
     server_node, caller = nodes
     threads: list[str] = []
@@ -226,13 +241,8 @@ def test_a_call_without_a_server_fails_at_once_rather_than_waiting(nodes: tuple[
 
 def test_a_slow_server_times_the_call_out_and_the_late_answer_is_dropped(nodes: tuple[Ros2Node, Ros2Node]) -> None:
     server_node, caller = nodes
-    entered, release = threading.Event(), threading.Event()
-
-    def slow(request: Any) -> Any:
-        entered.set()
-        release.wait(FAILSAFE_S)
-        return add(request)
-
+    slow = Held()
+    entered, release = slow.entered, slow.release
     server_node.service("slow", ADD, slow)
     client = caller.client("slow", ADD)
     assert client.wait_for_service(FAILSAFE_S)
@@ -310,13 +320,8 @@ def test_a_deferred_server_answers_later_from_any_thread_and_only_once(nodes: tu
 
 def test_a_full_keep_last_queue_drops_the_oldest_request(nodes: tuple[Ros2Node, Ros2Node]) -> None:
     server_node, caller = nodes
-    entered, release = threading.Event(), threading.Event()
-
-    def blocking(request: Any) -> Any:
-        entered.set()
-        release.wait(FAILSAFE_S)
-        return add(request)
-
+    blocking = Held()
+    entered, release = blocking.entered, blocking.release
     server = server_node.service("narrow", ADD, blocking, QoS(depth=1))
     server_node.service("probe", ADD, add)
     client, probe = caller.client("narrow", ADD), caller.client("probe", ADD)
@@ -336,15 +341,8 @@ def test_a_full_keep_last_queue_drops_the_oldest_request(nodes: tuple[Ros2Node, 
 
 def test_keep_all_answers_every_waiting_request_in_arrival_order(nodes: tuple[Ros2Node, Ros2Node]) -> None:
     server_node, caller = nodes
-    entered, release = threading.Event(), threading.Event()
-    order: list[int] = []
-
-    def blocking(request: Any) -> Any:
-        order.append(request.a)
-        entered.set()
-        release.wait(FAILSAFE_S)
-        return add(request)
-
+    blocking = Held()
+    entered, release, order = blocking.entered, blocking.release, blocking.order
     server = server_node.service("wide", ADD, blocking, QoS(history=History.KEEP_ALL))
     client = caller.client("wide", ADD)
     assert client.wait_for_service(FAILSAFE_S)
@@ -360,13 +358,8 @@ def test_closing_a_busy_server_ends_its_waiting_requests_unanswered_and_stops_it
     nodes: tuple[Ros2Node, Ros2Node],
 ) -> None:
     server_node, caller = nodes
-    entered, release = threading.Event(), threading.Event()
-
-    def blocking(request: Any) -> Any:
-        entered.set()
-        release.wait(FAILSAFE_S)
-        return add(request)
-
+    blocking = Held()
+    entered, release = blocking.entered, blocking.release
     server = server_node.service("closing", ADD, blocking)
     server_node.service("probe", ADD, add)
     client, probe = caller.client("closing", ADD), caller.client("probe", ADD)

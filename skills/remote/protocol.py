@@ -8,6 +8,7 @@ mission's clock, not a ROS Time: rounding it to nanoseconds would hand the skill
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
@@ -87,28 +88,24 @@ def _packed(state: tuple[Any, ...] | bytes | None) -> np.ndarray:
     return np.frombuffer(state if isinstance(state, bytes) else rng.pack(state), np.uint8)
 
 
-def _checked(data: Any) -> bytes | None:
-    """The packed state from a message's ``uint8[]``, its shape checked; None when empty."""
-    packed = bytes(data)
-    if not packed:
+def _state(data: Any, read: Callable[[bytes], Any]) -> Any:
+    """``read`` of the packed state in a message's ``uint8[]`` (a numpy array) or bytes; None when empty."""
+    if not len(data):  # no state travelled (a host's reply when the skill did not draw): the common case
         return None
     try:
-        return rng.check(packed)
+        return read(bytes(data))
     except ValueError as error:
         raise values.ValueCodecError(f"the random state: {error}") from None
+
+
+def _checked(data: Any) -> bytes | None:
+    """The packed state, its shape checked (a host unpacks it only if the skill draws)."""
+    return _state(data, rng.check)
 
 
 def _unpacked(data: Any) -> tuple[Any, ...] | None:
-    """The state from a message's ``uint8[]`` (a numpy array) or bytes; None when empty."""
-    if not len(data):  # no state came back (the skill did not draw): the common case
-        return None
-    packed = bytes(data)
-    if not packed:
-        return None
-    try:
-        return rng.unpack(packed)
-    except ValueError as error:
-        raise values.ValueCodecError(f"the random state: {error}") from None
+    """The state, unpacked."""
+    return _state(data, rng.unpack)
 
 
 @dataclass(frozen=True)
