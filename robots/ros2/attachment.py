@@ -52,7 +52,7 @@ class Attachment:
 
 def encode(attachment: Attachment) -> bytes:
     """The attachment's 33 bytes."""
-    return _WHOLE.pack(attachment.sequence, attachment.timestamp_ns, GID_SIZE, attachment.gid)
+    return pack(attachment.sequence, attachment.timestamp_ns, attachment.gid)
 
 
 def pack(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
