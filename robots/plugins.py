@@ -62,14 +62,17 @@ def discover(
         yield Plugin(ep.name, value, f"plugin {_distribution(ep)}", label)
 
 
-_DISTRIBUTIONS: dict[tuple[str, str, str], str] = {}
+_DISTRIBUTIONS: dict[object, str] = {}
 
 
 def _distribution(ep: Any) -> str:
-    """The name of the distribution declaring ``ep``, read once per process: each read parses the
-    distribution's METADATA, and checking a mission looks up every plug-in of every group."""
-    key = (ep.group, ep.name, ep.value)
+    """The name of the distribution declaring ``ep``, read once per distribution and process: each
+    read parses the distribution's METADATA, and botstage alone declares some sixty entry points."""
+    dist = getattr(ep, "dist", None)
+    if dist is None:
+        return ep.value
+    where = getattr(dist, "_path", None)  # a distribution on disk: its .dist-info folder
+    key = str(where) if where is not None else (ep.group, ep.name, ep.value)
     if key not in _DISTRIBUTIONS:
-        dist = getattr(ep, "dist", None)
-        _DISTRIBUTIONS[key] = dist.name if dist is not None else ep.value
+        _DISTRIBUTIONS[key] = dist.name
     return _DISTRIBUTIONS[key]

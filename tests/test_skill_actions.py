@@ -62,7 +62,9 @@ def test_a_goal_runs_the_skill_and_ends_with_its_outcome(served: tuple[Ros2Node,
     assert handle.accepted
     ended = handle.result(FAILSAFE_S)
     assert ended.status is GoalStatus.SUCCEEDED
-    assert ended.result.outcome == "success" and ended.result.ticks >= 5
+    # The server ticks on its wall clock: how many ticks 0.1 s takes depends on the host's load, so
+    # only "more than the start" is certain (a wait never ends on the tick that starts it).
+    assert ended.result.outcome == "success" and ended.result.ticks >= 1
     assert feedback.get(timeout=FAILSAFE_S).ticks >= 1
 
 

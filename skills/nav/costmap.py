@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from robots.gridmap import FREE, GridMap
 
@@ -19,6 +18,8 @@ LETHAL = math.inf
 
 def _distance_to_blocked(blocked: np.ndarray, max_cells: int) -> np.ndarray:
     """Euclidean distance in cells from each cell to the nearest blocked one (inf beyond ``max_cells``)."""
+    from scipy.ndimage import distance_transform_edt  # on first use: scipy's import costs every command
+
     distance = distance_transform_edt(~blocked)
     distance[distance > max_cells] = np.inf
     return distance

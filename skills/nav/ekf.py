@@ -26,11 +26,12 @@ Why the filter looks as it does:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
 
 from robots.interfaces import Pose2D
 
@@ -62,16 +63,22 @@ class MotionNoise:
     bias_gate: float = 16.0  # squared standard deviations: wheels and gyro disagreeing more teach nothing
 
 
-class _PoseFilter(ExtendedKalmanFilter):
-    """filterpy's EKF with the non-linear motion model in place of ``F x + B u``."""
+@functools.cache
+def _pose_filter() -> Any:
+    """filterpy's EKF with the non-linear motion model in place of ``F x + B u``; the class is made
+    on first use, as filterpy imports scipy.stats (a second for every command that never localises)."""
+    from filterpy.kalman import ExtendedKalmanFilter
 
-    def predict_x(self, u: object = 0) -> None:
-        distance, d_theta = u  # type: ignore[misc]
-        x, y, theta = (float(v) for v in self.x[:, 0])
-        heading = theta + d_theta / 2
-        self.x = np.array(
-            [[x + distance * math.cos(heading)], [y + distance * math.sin(heading)], [wrap(theta + d_theta)]]
-        )
+    class PoseFilter(ExtendedKalmanFilter):
+        def predict_x(self, u: object = 0) -> None:
+            distance, d_theta = u  # type: ignore[misc]
+            x, y, theta = (float(v) for v in self.x[:, 0])
+            heading = theta + d_theta / 2
+            self.x = np.array(
+                [[x + distance * math.cos(heading)], [y + distance * math.sin(heading)], [wrap(theta + d_theta)]]
+            )
+
+    return PoseFilter
 
 
 def _identity(x: np.ndarray) -> np.ndarray:
@@ -87,7 +94,7 @@ class PoseEKF:
 
     def __init__(self, pose: Pose2D, covariance: np.ndarray | None = None, noise: MotionNoise | None = None) -> None:
         self.noise = noise or MotionNoise()
-        self._kf = _PoseFilter(dim_x=3, dim_z=3)
+        self._kf = _pose_filter()(dim_x=3, dim_z=3)
         self.bias = 0.0  # rad/s, the gyro's estimated bias
         self.bias_var = self.noise.gyro_bias_std**2
         self.reset(pose, covariance)

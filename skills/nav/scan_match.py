@@ -56,7 +56,6 @@ from dataclasses import dataclass
 from weakref import finalize, ref
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from robots.gridmap import FREE, GridMap
 from robots.interfaces import LaserScan, Pose2D
@@ -114,6 +113,8 @@ class LikelihoodField:
 
     @classmethod
     def build(cls, grid: GridMap, sigma: float = 0.05, pad: int = 16) -> LikelihoodField:
+        from scipy.ndimage import distance_transform_edt  # on first use: scipy's import costs every command
+
         free = grid.data == FREE
         res = grid.resolution
         outside = distance_transform_edt(free) * res - res / 2  # free cell centre to the nearest blocked cell's face

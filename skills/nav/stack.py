@@ -21,11 +21,9 @@ import math
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.ndimage import binary_dilation
-from scipy.spatial import cKDTree
 
 from robots.clock import Clock
 from robots.gridmap import FREE, GridMap
@@ -34,6 +32,9 @@ from robots.profile import Profile
 from skills.nav.controller import FollowerParams
 from skills.nav.costmap import LETHAL, inflated_costs
 from skills.nav.planner import Plan, Planner
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 _COSTS: dict[tuple[bytes, float, float], np.ndarray] = {}
 _BLOCKED: dict[bytes, cKDTree] = {}
@@ -65,6 +66,8 @@ def blocked_cells(grid: GridMap) -> cKDTree:
     if tree is None:
         if len(_BLOCKED) > 8:
             _BLOCKED.clear()
+        from scipy.spatial import cKDTree  # on first use: scipy's import costs every command
+
         tree = _BLOCKED[key] = cKDTree(np.argwhere(grid.data != FREE) + 0.5)
     return tree
 
@@ -125,6 +128,8 @@ class NavStack:
         # where the range sensors look: (mount heading, field of view), base frame
         self.views = [(m[2], f) for d, m, f in ((laser, laser_mount, laser_fov), (sonar, sonar_mount, sonar_fov)) if d]
         self.obstacle_memory = obstacle_memory
+        from scipy.ndimage import binary_dilation  # on first use: scipy's import costs every command
+
         self.static = static_costs(grid, robot_radius)
         self.planner = Planner(grid, self.static)
         # cells within 15 cm of the map's obstacles: a return there is the map, not a person
@@ -336,6 +341,8 @@ class NavStack:
         seen = self.seen() if seen is None else seen
         if not seen.any():
             return self.static
+        from scipy.ndimage import binary_dilation
+
         costs = self.static.copy()
         costs[binary_dilation(seen, structure=self._disk)] = LETHAL
         return costs

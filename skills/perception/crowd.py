@@ -17,7 +17,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.cluster.hierarchy import fcluster, linkage
 
 CROWD_DISTANCE = 1.5  # m, the paper's
 
@@ -37,6 +36,8 @@ def group(ids: list[int], positions: np.ndarray, distance: float = CROWD_DISTANC
     """Single-linkage groups of more than one person, as lists of indices into ``ids``."""
     if len(ids) < 2:
         return []
+    from scipy.cluster.hierarchy import fcluster, linkage  # on first use: scipy's import costs every command
+
     clusters = fcluster(linkage(positions, method="single"), t=distance, criterion="distance")
     groups = [list(np.flatnonzero(clusters == label)) for label in np.unique(clusters)]
     return [g for g in groups if len(g) > 1]

@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
-from scipy.optimize import linear_sum_assignment
+
+if TYPE_CHECKING:
+    from filterpy.kalman import KalmanFilter
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,8 @@ class PeopleTracks:
             seen = np.array([(x, y) for x, y, _ in found])
             distance = np.hypot(predicted[:, None, 0] - seen[None, :, 0], predicted[:, None, 1] - seen[None, :, 1])
             same_id = np.array([[sid is not None and sid == t.sensor_id for _, _, sid in found] for t in self.tracks])
+            from scipy.optimize import linear_sum_assignment  # on first use: scipy's import costs every command
+
             rows, cols = linear_sum_assignment(distance - self.params.same_id_bonus * same_id)
             for i, j in zip(rows, cols, strict=True):
                 track, (x, y, sensor_id) = self.tracks[i], found[j]
@@ -96,6 +100,8 @@ class PeopleTracks:
         self.time = None
 
     def _filter(self, x: float, y: float) -> KalmanFilter:
+        from filterpy.kalman import KalmanFilter  # on first use: filterpy imports scipy.stats
+
         kf = KalmanFilter(dim_x=4, dim_z=2)  # x, y, vx, vy
         kf.x = np.array([[x], [y], [0.0], [0.0]])
         kf.H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])

@@ -22,7 +22,6 @@ recognizer.py).
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import istft, stft
 
 RATE = 16000
 NFFT = 512  # 32 ms
@@ -44,6 +43,8 @@ def estimate_snr(samples: np.ndarray, share: float = 0.2) -> float:
 
 def suppress_noise(samples: np.ndarray, floor: float = 0.2, smoothing: float = 0.98, quiet: float = 0.2) -> np.ndarray:
     """The utterance (int16) with its steady background noise suppressed, same length, int16."""
+    from scipy.signal import istft, stft  # on first use: scipy's import costs every command
+
     x = np.asarray(samples, dtype=float)
     if x.size < NFFT:
         return np.asarray(samples, dtype=np.int16)
