@@ -227,6 +227,11 @@ def test_teleop_drives_the_held_robot_and_stops_it_on_release_and_by_its_watchdo
     folder = tmp_path / "run"
     with live_run(folder, until=30) as live:
         start = live.until(lambda s: s["paused"] and s["robot"]["teleop"]["allowed"], "held")["robot"]["pose"]
+        malformed = ('{"v": "fast", "w": 0}', '{"v": 0.3}', '{"v": true, "w": 0}', '{"v": NaN, "w": 0}', '{"v": 1e999}')
+        for bad in malformed:  # refused as the request's fault (422), whatever the run's state
+            refused = live.http.post("/api/teleop", content=bad, headers={"content-type": "application/json"})
+            assert refused.status_code == 422 and "finite numbers" in refused.json()["detail"], bad
+        assert not live.snapshot()["robot"]["teleop"]["active"]
 
         def driven_forward() -> bool:
             assert live.http.post("/api/teleop", json={"v": 0.4, "w": 0.0}).status_code == 200

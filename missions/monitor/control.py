@@ -46,6 +46,10 @@ class ControlError(ValueError):
     """A request the run cannot carry out, said in the operator's terms."""
 
 
+class MalformedCommand(ControlError):
+    """A request that is wrong whatever the run's state (a teleop speed that is not a number)."""
+
+
 @dataclass
 class Breakpoint:
     id: int
@@ -248,7 +252,7 @@ class Control:
     def teleop(self, v: Any, w: Any) -> str:
         """A teleop command from the page: held for ``TELEOP_WATCHDOG_S``, then the robot stops."""
         if not all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in (v, w)):
-            raise ControlError("teleop needs numbers v (m/s) and w (rad/s)")
+            raise MalformedCommand(f"teleop needs finite numbers v (m/s) and w (rad/s), got v={v!r} w={w!r}")
         allowed, why = self.teleop_allowed()
         if not allowed:
             raise ControlError(why)

@@ -28,7 +28,7 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 
-from missions.monitor.control import Control, ControlError
+from missions.monitor.control import Control, ControlError, MalformedCommand
 from missions.monitor.hub import Hub
 from missions.monitor.replay import RecordedRun
 from missions.monitor.robot_view import map_info, map_png
@@ -174,7 +174,9 @@ def create_app(
         control, body = await controlled(request)
         try:
             message = control.teleop(body.get("v"), body.get("w"))
-        except ControlError as exc:
+        except MalformedCommand as exc:  # the request's fault: nothing moves
+            raise HTTPException(422, str(exc)) from None
+        except ControlError as exc:  # not now: the run is not held, or the robot cannot be driven
             raise HTTPException(409, str(exc)) from None
         return JSONResponse({"ok": True, "message": message})
 
