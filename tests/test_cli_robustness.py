@@ -115,6 +115,13 @@ def test_a_run_folder_that_cannot_be_one_is_refused_before_the_run(tmp_path: Pat
     assert output.startswith("error: /proc/botstage-nope: ")
 
 
+def test_paused_without_the_monitor_is_refused_before_the_run(tmp_path: Path) -> None:
+    """--paused holds the run for the monitor's page: without --monitor nothing could resume it."""
+    output = clean(botstage("run", HELLO, "--paused", "--out", str(tmp_path / "run")), 2)
+    assert "error: --paused holds the run for the monitor: add --monitor" in output
+    assert not (tmp_path / "run").exists()
+
+
 def test_output_files_must_be_writable_files(tmp_path: Path, afile: Path) -> None:
     output = clean(botstage("tree", HELLO, "-o", str(tmp_path)), 2)
     assert "Invalid value for '-o' / '--output': " in output and "is a directory, not a file" in output
