@@ -20,7 +20,7 @@ from robots.clock import SimClock
 from skills.base import Outcome, SkillContext, SkillLogger
 from skills.execution import SkillExecution
 from skills.outbox.service import Uploads
-from skills.outbox.settings import TOKEN_ENV
+from skills.outbox.settings import TOKEN_ENV, OutboxSettings
 from skills.testing import DictBoard as Board
 from skills.upload import Upload
 from skills.workers import Workers
@@ -86,6 +86,19 @@ def test_upload_queues_in_a_tick_and_the_photo_arrives_in_the_background(tmp_pat
     assert listed["metadata"] == {"visitor": "ada"}
     assert harness.uploads.summary()["photos_uploaded"] == 1
     assert (tmp_path / "run" / "outbox" / "outbox.sqlite").exists()  # default: in the run folder
+
+
+def test_the_uploads_rest_only_while_no_photo_waits(tmp_path, gallery, harness) -> None:
+    """What lets a distributed run skip an upload process's steps: resting means a step does nothing."""
+    uploads = harness.uploads
+    assert uploads.resting()  # no outbox yet
+    outbox = uploads.outbox(OutboxSettings(endpoint=gallery.upload_url))
+    assert uploads.resting()
+    outbox.record(make_photo(tmp_path / "p"))
+    assert not uploads.resting()  # recorded, not yet sent
+    harness.clock.next_tick()
+    uploads.after_tick()
+    assert len(photos_in(gallery)) == 1 and uploads.resting()
 
 
 def test_wait_runs_until_the_gallery_has_it(tmp_path, gallery, harness) -> None:

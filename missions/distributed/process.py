@@ -20,6 +20,7 @@ trace of the same run in one process. Loopback unless the deployment or ``--list
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import signal
 import threading
@@ -152,16 +153,23 @@ class Lockstep:
     def handle(self, request: Any) -> Any:
         try:
             if request.kind == FINISH:
-                return self._response(summary_json=values.dumps(self.finish(), "the summary"), error="")
+                return self._response(summary_json=values.dumps(self.finish(), "the summary"), error="", resting=False)
             self.clock.ticks = int(request.ticks)
             for service in self.services:
                 after = getattr(service, "after_tick", None)
                 if after is not None:
                     after(self.session)
-            return self._response(summary_json="", error="")
+            return self._response(summary_json="", error="", resting=self.resting())
         except Exception as error:  # said to the mission, which records it; this process serves on
             log.exception("lockstep request failed")
-            return self._response(summary_json="", error=f"{type(error).__name__}: {error}")
+            return self._response(summary_json="", error=f"{type(error).__name__}: {error}", resting=False)
+
+    def resting(self) -> bool:
+        """Whether no service has after-tick work left (one with ``after_tick`` and no ``resting()`` always has)."""
+        return all(
+            getattr(service, "after_tick", None) is None or bool(getattr(service, "resting", lambda: False)())
+            for service in self.services
+        )
 
     def finish(self) -> dict[str, Any]:
         result = RunResult("", "", self.session.folder, {"counters": {}}, {}, None)
@@ -193,6 +201,12 @@ class RemoteKind(BackendKind):
 class LockstepObserver:
     """The mission's side: after each tick, every other process finishes it; at the end, their summaries.
 
+    A process that answers that it rests (no after-tick work left: no upload due or in flight) is
+    not asked again until one of its skills' replies says it has such work (``work_given``: how
+    many have so far) or a new session serves it (a restart): stepping it would do nothing, and a
+    round trip per tick to each process is a large part of what a distributed tick costs over one
+    process's. Whether it is still there is checked every tick all the same, from the graph.
+
     A process that is gone (killed, cut off: its lockstep server left the graph, or a call in
     flight ended without an answer) is skipped, said once, and stepped again from the first tick
     it serves again (a restarted process): the mission goes on without it meanwhile, as its
@@ -202,11 +216,20 @@ class LockstepObserver:
 
     name = "lockstep"
 
-    def __init__(self, node: Ros2Node, processes: list[str], say: Callable[[str], None] = print) -> None:
+    def __init__(
+        self,
+        node: Ros2Node,
+        processes: list[str],
+        say: Callable[[str], None] = print,
+        work_given: Callable[[str], int] = lambda process: 0,
+    ) -> None:
         self.request = types.message_class(f"{LOCKSTEP_TYPE}_Request")
         self.clients = {p: node.client(lockstep_service(p), LOCKSTEP_TYPE) for p in processes}
         self.say = say
+        self.work_given = work_given
         self.lost: set[str] = set()
+        self.resting: dict[str, tuple[int, frozenset[str]]] = {}  # process -> (work_given, sessions) when it rested
+        self.steps = self.skipped = 0  # lockstep calls made, and saved by resting processes
 
     def wait_ready(self, timeout: float) -> None:
         for process, client in self.clients.items():
@@ -237,10 +260,20 @@ class LockstepObserver:
             raise RuntimeError(f"process {process!r}: {response.error}")
         return response
 
-    def _all(self, kind: int, session: Any) -> dict[str, Any | None]:
+    def _all(self, kind: int, session: Any, processes: list[str] | None = None) -> dict[str, Any | None]:
         """Every process's answer, asked of all at once (a tick waits for the slowest, not the sum)."""
-        calls = {process: self._send(process, kind, session) for process in self.clients}
+        calls = {process: self._send(process, kind, session) for process in processes or self.clients}
         return {process: self._answer(process, call, session) for process, call in calls.items()}
+
+    def _still_resting(self, process: str) -> bool:
+        """Whether ``process`` rests on: no work given to it since, and the same sessions serve it."""
+        rested = self.resting.get(process)
+        if rested is None:
+            return False
+        if rested == (self.work_given(process), self.clients[process].servers.zids()):
+            return True
+        del self.resting[process]  # stepped again (gone: said so by the step that finds it missing)
+        return False
 
     def _gone(self, process: str, session: Any, why: str) -> None:
         if process not in self.lost:
@@ -248,7 +281,14 @@ class LockstepObserver:
             self.say(f"process {process!r} lost at tick {session.clock.ticks} ({why}): the mission goes on without it")
 
     def after_tick(self, session: Any) -> None:
-        self._all(STEP, session)
+        due = [process for process in self.clients if not self._still_resting(process)]
+        self.steps += len(due)
+        self.skipped += len(self.clients) - len(due)
+        if not due:
+            return
+        for process, response in self._all(STEP, session, due).items():
+            if response is not None and response.resting:
+                self.resting[process] = (self.work_given(process), self.clients[process].servers.zids())
 
     def finished(self, session: Any, result: RunResult) -> None:
         for process, response in self._all(FINISH, session).items():
@@ -474,10 +514,9 @@ def _serve(
     reachable = MissionInterfaces(interfaces, node, role.checked.mission_process)
     host = SkillHost(Registry.default(), reachable, role.skills_here)
     stack.callback(host.close)
-    following = _following(host, clock)
-    serve_skill_host(node, following)
-    stack.callback(SkillActions(node, host, role.skills_here).close)  # for ROS 2 tools; closed before the host
     lockstep = Lockstep(clock, services, session_like)
+    serve_skill_host(node, _following(host, clock, lockstep.resting))
+    stack.callback(SkillActions(node, host, role.skills_here).close)  # for ROS 2 tools; closed before the host
     node.service(lockstep_service(role.name), LOCKSTEP_TYPE, lockstep.handle)
 
 
@@ -657,13 +696,15 @@ class ServeMissionInterfaces:
         serve_devices(self.node, DeviceHost(own))
 
 
-def _following(host: SkillHost, clock: SimClock) -> Any:
-    """The host, with this process's clock set to each request's tick before it runs (services read it)."""
+def _following(host: SkillHost, clock: SimClock, resting: Callable[[], bool]) -> Any:
+    """The host, with this process's clock set to each request's tick before it runs (services read
+    it), and each reply saying whether the process now has after-tick work (lockstep steps it then)."""
 
     class Following:
         def handle(self, request: TickRequest, timeout: float | None = None) -> Any:
             clock.ticks = request.ticks
-            return host.handle(request, timeout)
+            reply = host.handle(request, timeout)
+            return dataclasses.replace(reply, pending_after_tick=not resting())
 
     return Following()
 
@@ -693,7 +734,7 @@ def _run_mission(
     if role.robot_process:
         backends.register(RemoteKind(node, role.robot_process, simulated=True), replace=True)
         backend = "remote"
-    lockstep = LockstepObserver(node, role.others, ready)
+    lockstep = LockstepObserver(node, role.others, ready, lambda p: links[p].work_given if p in links else 0)
     lockstep.wait_ready(READY_TIMEOUT_S)
     remote = {skill: process for skill, process in role.skill_hosts.items() if process != role.name}
     ready(f"{role.name} runs the mission")

@@ -67,6 +67,10 @@ class UploadsService:
         if self.uploads is not None:
             self.uploads.after_tick()
 
+    def resting(self) -> bool:
+        """Whether after_tick has nothing to do until a skill records another photo."""
+        return self.uploads is None or self.uploads.resting()
+
     def close(self) -> None:
         if self.uploads is not None:
             self.uploads.close()  # uploads in flight get a few seconds; pending photos stay in the outbox

@@ -89,6 +89,10 @@ class Outbox:
         self.worker.pump()
         self.worker.settle()
 
+    def idle(self) -> bool:
+        """Nothing to send and nothing in flight: stepping it does nothing until a photo is recorded."""
+        return self.worker.in_flight == 0 and self.counts()[PENDING] == 0
+
     def counts(self) -> dict[str, int]:
         """Photos in the outbox by state (all of them, this run's and earlier ones')."""
         return self.store.counts()

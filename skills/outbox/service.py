@@ -92,6 +92,14 @@ class Uploads:
         for outbox in outboxes:
             outbox.step()
 
+    def resting(self) -> bool:
+        """Whether ``after_tick`` has nothing to do: off the simulated clock, or no outbox with photos to send."""
+        if not self.clock.simulated:
+            return True
+        with self._lock:
+            outboxes = list(self._outboxes.values())
+        return all(outbox.idle() for outbox in outboxes)
+
     def summary(self) -> dict[str, Any]:
         """Counts summed over the run's outboxes, then each outbox's own figures."""
         from skills.outbox.client import redact

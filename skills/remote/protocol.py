@@ -130,6 +130,8 @@ class TickReply:
     # ("log", level, message) and ("set", key, value), in the order the skill made them
     events: tuple[tuple[str, str, Any], ...] = ()
     rng_state: tuple[Any, ...] | None = None  # when the call ended having drawn from the node's generator
+    # whether the host's process has after-tick work (set by that process; True when unknown)
+    pending_after_tick: bool = True
 
 
 def request_fields(request: TickRequest) -> dict[str, Any]:
@@ -200,6 +202,7 @@ def reply_fields(reply: TickReply) -> dict[str, Any]:
         "outputs_json": values.dumps(reply.outputs, "the outputs") if reply.outputs else "",
         "events_json": values.dumps(list(reply.events), "the events") if reply.events else "",
         "rng": _packed(reply.rng_state),
+        "pending_after_tick": reply.pending_after_tick,
     }
 
 
@@ -214,7 +217,10 @@ def reply_of(fields: Any) -> TickReply:
     drawn = _unpacked(f.rng)
     if not isinstance(outputs, dict) or not isinstance(events, list):
         raise values.ValueCodecError("a reply's outputs must be a mapping and its events a list")
-    return TickReply(state, str(f.outcome), str(f.reason), outputs, tuple(map(tuple, events)) if events else (), drawn)
+    pending = True if f.pending_after_tick is None else bool(f.pending_after_tick)
+    return TickReply(
+        state, str(f.outcome), str(f.reason), outputs, tuple(map(tuple, events)) if events else (), drawn, pending
+    )
 
 
 class DirectLink:

@@ -57,6 +57,7 @@ class SkillTickLink:
         self.remote = process
         self._client = WatchedClient(node.client(service_name(process), SERVICE_TYPE), process, timeout)
         self._request_type = types.message_class(f"{SERVICE_TYPE}_Request")
+        self.work_given = 0  # replies that said the process has after-tick work (lockstep steps it then)
 
     def wait_for_remote(self, timeout: float | None = None) -> bool:
         """Whether the process serves its skills, waiting up to ``timeout`` s."""
@@ -65,9 +66,12 @@ class SkillTickLink:
     def tick(self, request: TickRequest) -> TickReply:
         response = self._client.call(self._request_type(**request_fields(request)))
         try:
-            return reply_of(response)
+            reply = reply_of(response)
         except values.ValueCodecError as error:
             raise RemoteLost(f"remote {self.remote!r} sent a reply that cannot be read: {error}") from None
+        if reply.pending_after_tick:
+            self.work_given += 1
+        return reply
 
     def close(self) -> None:
         self._client.close()
