@@ -11,7 +11,8 @@ starts once per process). Every process is a ROS 2 node named after it, on one Z
   runs when the mission's tick reaches it (``/<name>/lockstep``);
 - **the mission** (``mission: true``): runs the mission with the skills served elsewhere replaced
   by proxies (``skills/remote``) and the robot by ``RemoteRobot``; after each tick it waits until
-  every other process has finished that tick (lockstep), then merges their summary blocks.
+  every other process with after-tick work has finished that tick (lockstep; one with none rests
+  until a skill reply says it has some), then merges their summary blocks.
 
 On a simulated backend the mission's ticks drive every clock, so a distributed run leaves the
 trace of the same run in one process. Loopback unless the deployment or ``--listen`` says more.
