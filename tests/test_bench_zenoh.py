@@ -34,6 +34,7 @@ def test_the_bench_reports_every_figure_beside_its_baseline() -> None:
     assert call["calls"] == 20 and call["request_bytes"] > call["response_bytes"] > 0
     assert positive(call["botstage_p50_ms"], call["botstage_p99_ms"], call["raw_p50_ms"], call["raw_p99_ms"])
     assert positive(call["service_p50_ms"], call["local_p50_ms"], call["ratio_p50"])
+    assert positive(call["floor_p50_ms"], call["floor_ratio_p50"])
     assert call["botstage_p99_ms"] >= call["botstage_p50_ms"]
 
     for name, size in (("stream_scan", 700), ("stream_image", 640 * 480 * 3), ("stream_image_flat_out", 640 * 480 * 3)):

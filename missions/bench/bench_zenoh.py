@@ -12,7 +12,11 @@ one's node and serves, on that one Zenoh session, both sides of every comparison
   raw queryable that answers at once with a reply of the SkillTick response's byte size; the
   first reply ends the wait. Warmed up first; timed in interleaved blocks. To show where the
   difference goes, the same request is also sent to a SkillTick service that answers at once
-  (botstage's service layer alone), and the skill is run in this process (no network).
+  (botstage's service layer alone), and the skill is run in this process (no network). The
+  **floor** is the least any ROS 2-format call of these types can cost in Python: the same
+  request as rosbags' CDR with rmw_zenoh's attachment, to a raw queryable that reads both and
+  answers the SkillTick response's CDR with its attachment from Zenoh's callback, the reply read
+  as the client reads it; no botstage service, proxy or host code on either side.
   Targets: p99 <= 5 ms, ratio of medians <= 1.5.
 - **stream_scan**, **stream_image**: 181-beam ``sensor_msgs/LaserScan`` at 10 Hz and 640x480
   ``bgr8`` ``sensor_msgs/Image`` at 30 Hz, from a ``Ros2Node`` publisher here to a subscription
@@ -57,6 +61,7 @@ import zenoh
 from missions import DEFAULT_MISSION
 from robots.clock import SimClock
 from robots.interfaces import LaserScan
+from robots.ros2 import attachment as attachments
 from robots.ros2 import readings, types
 from robots.ros2.node import Ros2Node
 from robots.ros2.topics import SENSOR_DATA
@@ -74,6 +79,7 @@ DEPLOYMENT = SOURCE / "missions" / "deployments" / "peoplebot_five_computers.yam
 FAR = "bench_far"
 SKILL, INPUTS = "wait", {"duration": 0.0}  # ends in its first step
 RAW_CALL = "bench/raw/call"
+FLOOR_CALL = "bench/floor/call"
 ECHO = f"/{FAR}/echo"  # SkillTick answered at once, without a skill host
 ENDED = TickReply(State.ENDED, "success")  # what the benched call answers
 STREAMS: dict[str, tuple[str, str, float]] = {  # kind -> topic, type, rate (Hz)
@@ -147,7 +153,10 @@ class Far:
         response = types.message_class(f"{SERVICE_TYPE}_Response")(**reply_fields(ENDED))
         self.node.service(ECHO, SERVICE_TYPE, lambda _request: response)  # the service layer alone
         session = self.node.session
-        self._raw: list[Any] = [session.declare_queryable(RAW_CALL, answer, complete=True)]
+        self._raw: list[Any] = [
+            session.declare_queryable(RAW_CALL, answer, complete=True),
+            session.declare_queryable(FLOOR_CALL, floor_answer(response), complete=True),
+        ]
         self.records: dict[str, list[tuple[int, int, int]]] = {}
         self._changed = threading.Condition()
         for kind, (topic, type_name, _) in STREAMS.items():
@@ -186,6 +195,20 @@ class Far:
             declared.undeclare()
         self.node.close()
         self.host.close()
+
+
+def floor_answer(response: Any) -> Callable[[zenoh.Query], None]:
+    """The floor's server: read the request's attachment and CDR, reply ``response``'s CDR with an attachment."""
+    store, request_type, response_type = types.type_store(), f"{SERVICE_TYPE}_Request", f"{SERVICE_TYPE}_Response"
+
+    def answer(query: zenoh.Query) -> None:
+        sequence, _, gid = attachments.unpack(query.attachment.to_bytes())  # type: ignore[union-attr]
+        store.deserialize_cdr(query.payload.to_bytes(), request_type)  # type: ignore[union-attr]
+        payload = bytes(store.serialize_cdr(response, response_type))
+        query.reply(FLOOR_CALL, payload, attachment=attachments.pack(sequence, time.time_ns(), gid))
+        query.drop()
+
+    return answer
 
 
 def far_main(endpoint: str, reply_bytes: int) -> None:
@@ -302,6 +325,27 @@ def _raw_call_seconds(session: zenoh.Session, request: bytes) -> float:
     return took
 
 
+def _floor_call_seconds(session: zenoh.Session, request: Any, gid: bytes, sequence: list[int]) -> float:
+    """The floor: rosbags' CDR and rmw_zenoh's attachment both ways around a raw get."""
+    store = types.type_store()
+    began = time.perf_counter()
+    sequence[0] += 1
+    replies = session.get(
+        FLOOR_CALL,
+        payload=bytes(store.serialize_cdr(request, f"{SERVICE_TYPE}_Request")),
+        attachment=attachments.pack(sequence[0], time.time_ns(), gid),
+        target=zenoh.QueryTarget.ALL_COMPLETE,
+        consolidation=zenoh.ConsolidationMode.NONE,
+    )
+    sample = replies.recv().ok
+    if sample is None or sample.attachment is None:
+        raise RuntimeError("the floor's queryable replied an error")
+    if attachments.unpack(sample.attachment.to_bytes())[0] != sequence[0]:
+        raise RuntimeError("the floor's reply answers another call")
+    store.deserialize_cdr(sample.payload.to_bytes(), f"{SERVICE_TYPE}_Response")
+    return time.perf_counter() - began
+
+
 def _service_call_seconds(client: Any, request: Any) -> float:
     began = time.perf_counter()
     client.call(request, READY_S)
@@ -318,9 +362,11 @@ def bench_skill_call(node: Ros2Node, calls: int, request_bytes: int, response_by
         remote = remote_of(real, link)
         clock = SimClock(10.0)
         raw_request, echo_request = bytes(request_bytes), start_request()
+        gid, floor_sequence = os.urandom(attachments.GID_SIZE), [0]
         ways: dict[str, Callable[[], float]] = {
             "botstage": lambda: _start_seconds(remote, clock),
             "raw": lambda: _raw_call_seconds(node.session, raw_request),
+            "floor": lambda: _floor_call_seconds(node.session, echo_request, gid, floor_sequence),
             "service": lambda: _service_call_seconds(echo, echo_request),
             "local": lambda: _start_seconds(real, clock),
         }
@@ -350,7 +396,11 @@ def bench_skill_call(node: Ros2Node, calls: int, request_bytes: int, response_by
         "raw_p99_ms": _ms(raw, 99),
         "ratio_p50": ratio,
         # where the difference goes: the same bytes through a ROS 2 service answered at once
-        # (the service layer alone), and the skill run in this process (no network)
+        # (the service layer alone), and the skill run in this process (no network); the floor
+        # is rosbags' CDR and the attachment both ways around a raw get (no botstage code)
+        "floor_p50_ms": _ms(samples["floor"], 50),
+        "floor_p99_ms": _ms(samples["floor"], 99),
+        "floor_ratio_p50": _ratio(statistics.median(samples["floor"]), statistics.median(raw)),
         "service_p50_ms": _ms(samples["service"], 50),
         "service_p99_ms": _ms(samples["service"], 99),
         "local_p50_ms": _ms(samples["local"], 50),
@@ -539,6 +589,8 @@ def table(results: list[dict[str, Any]]) -> str:
             raw = f"p50 {r['raw_p50_ms']:.3f} / p99 {r['raw_p99_ms']:.3f} ms"
             target = f"ratio <= {TARGET_CALL_RATIO:g}, p99 <= {TARGET_CALL_P99_MS:g} ms"
             lines.append(f"{name:<24} {bot:>34} {raw:>34} {r['ratio_p50']:>6.2f}x  {target}{_mark(r)}")
+            floor = f"p50 {r['floor_p50_ms']:.3f} / p99 {r['floor_p99_ms']:.3f} ms"
+            lines.append(f"{'  floor: CDR + attachment':<24} {floor:>34} {'':>34} {r['floor_ratio_p50']:>6.2f}x")
             service = f"p50 {r['service_p50_ms']:.3f} / p99 {r['service_p99_ms']:.3f} ms"
             lines.append(f"{'  of which service call':<24} {service:>34}")
             lines.append(f"{'  skill in-process':<24} {'p50 ' + format(r['local_p50_ms'], '.3f') + ' ms':>34}")
