@@ -15,7 +15,13 @@ from typing import Any
 
 import pytest
 
-from missions.distributed.process import LOCKSTEP_TYPE, Lockstep, LockstepObserver, lockstep_service
+from missions.distributed.process import (
+    LOCKSTEP_TYPE,
+    RECHECK_S,
+    Lockstep,
+    LockstepObserver,
+    lockstep_service,
+)
 from robots.clock import SimClock
 from robots.ros2.node import Ros2Node
 from skills.remote.protocol import State, TickReply, reply_fields, reply_of
@@ -93,6 +99,28 @@ def test_a_resting_process_is_skipped_until_work_is_given_and_stepped_until_done
     assert remote_clock.ticks == 8  # the tick of its last step
     assert (observer.steps, observer.skipped) == (4, 7)
     assert said == []
+
+
+def test_work_from_outside_the_mission_is_picked_up_by_the_recheck(nodes: tuple[Ros2Node, Ros2Node]) -> None:
+    """A ROS 2 tool's goal to the process (no skill reply tells the mission): stepped within RECHECK_S."""
+    mission, skills = nodes
+    outbox = Outbox()
+    serve(skills, [outbox])
+    observer = LockstepObserver(mission, ["skills_pc"], lambda _: None)
+    observer.wait_ready(FAILSAFE_S)
+    session = SimpleNamespace(clock=SimClock(10.0))
+    every = round(RECHECK_S / session.clock.period)
+
+    ticks(observer, session, 2)
+    assert outbox.steps == 1  # rested at tick 1
+    outbox.pending = 2  # a goal from outside: nothing tells the mission
+    ticks(observer, session, every - 2)
+    assert outbox.steps == 1  # still skipped: its recheck falls on tick 1 + every
+    ticks(observer, session, 1)
+    assert outbox.steps == 2  # the recheck stepped it; it has work now, so it is stepped each tick
+    ticks(observer, session, 3)
+    assert outbox.steps == 3 and outbox.pending == 0  # done, resting again after the last photo
+    assert observer.resting
 
 
 def test_a_service_that_cannot_say_it_rests_is_stepped_every_tick(nodes: tuple[Ros2Node, Ros2Node]) -> None:

@@ -70,6 +70,7 @@ log = logging.getLogger(__name__)
 
 LOCKSTEP_TYPE = "botstage_msgs/srv/Lockstep"
 READY_TIMEOUT_S = 60.0
+RECHECK_S = 1.0  # mission time after which a resting process is stepped anyway (work from outside the mission)
 STEP, FINISH = 0, 1
 
 
@@ -204,9 +205,13 @@ class LockstepObserver:
 
     A process that answers that it rests (no after-tick work left: no upload due or in flight) is
     not asked again until one of its skills' replies says it has such work (``work_given``: how
-    many have so far) or a new session serves it (a restart): stepping it would do nothing, and a
-    round trip per tick to each process is a large part of what a distributed tick costs over one
-    process's. Whether it is still there is checked every tick all the same, from the graph.
+    many have so far), a new session serves it (a restart), or ``RECHECK_S`` of mission time have
+    passed: stepping it would do nothing, and a round trip per tick to each process is a large
+    part of what a distributed tick costs over one process's. The recheck is for work that comes
+    from outside the mission (a ROS 2 tool's goal to its upload action): its time moves only when
+    stepped, so it would otherwise wait for the mission's next photo. It falls on fixed ticks, so
+    runs stay deterministic. Whether the process is still there is checked every tick all the
+    same, from the graph.
 
     A process that is gone (killed, cut off: its lockstep server left the graph, or a call in
     flight ended without an answer) is skipped, said once, and stepped again from the first tick
@@ -229,7 +234,8 @@ class LockstepObserver:
         self.say = say
         self.work_given = work_given
         self.lost: set[str] = set()
-        self.resting: dict[str, tuple[int, frozenset[str]]] = {}  # process -> (work_given, sessions) when it rested
+        # process -> (work_given, sessions) when it rested, and the tick it is asked again at the latest
+        self.resting: dict[str, tuple[tuple[int, frozenset[str]], int]] = {}
         self.steps = self.skipped = 0  # lockstep calls made, and saved by resting processes
 
     def wait_ready(self, timeout: float) -> None:
@@ -266,12 +272,14 @@ class LockstepObserver:
         calls = {process: self._send(process, kind, session) for process in processes or self.clients}
         return {process: self._answer(process, call, session) for process, call in calls.items()}
 
-    def _still_resting(self, process: str) -> bool:
-        """Whether ``process`` rests on: no work given to it since, and the same sessions serve it."""
+    def _still_resting(self, process: str, ticks: int) -> bool:
+        """Whether ``process`` rests on at tick ``ticks``: no work given to it since, the same sessions
+        serve it, and its recheck is not due."""
         rested = self.resting.get(process)
         if rested is None:
             return False
-        if rested == (self.work_given(process), self.clients[process].servers.zids()):
+        seen, recheck = rested
+        if ticks < recheck and seen == (self.work_given(process), self.clients[process].servers.zids()):
             return True
         del self.resting[process]  # stepped again (gone: said so by the step that finds it missing)
         return False
@@ -282,14 +290,16 @@ class LockstepObserver:
             self.say(f"process {process!r} lost at tick {session.clock.ticks} ({why}): the mission goes on without it")
 
     def after_tick(self, session: Any) -> None:
-        due = [process for process in self.clients if not self._still_resting(process)]
+        ticks = session.clock.ticks
+        due = [process for process in self.clients if not self._still_resting(process, ticks)]
         self.steps += len(due)
         self.skipped += len(self.clients) - len(due)
         if not due:
             return
         for process, response in self._all(STEP, session, due).items():
             if response is not None and response.resting:
-                self.resting[process] = (self.work_given(process), self.clients[process].servers.zids())
+                seen = (self.work_given(process), self.clients[process].servers.zids())
+                self.resting[process] = (seen, ticks + max(1, round(RECHECK_S / session.clock.period)))
 
     def finished(self, session: Any, result: RunResult) -> None:
         for process, response in self._all(FINISH, session).items():
