@@ -51,6 +51,7 @@ def test_five_processes_leave_the_one_process_trace(tmp_path: Path) -> None:
     run(ROOT / "missions" / "peoplebot_entertainer.yaml", seed=SEED, until=UNTIL, out=tmp_path / "one")
     five, one = (json.loads((tmp_path / r / "summary.json").read_text()) for r in ("five", "one"))
     assert five["counters"] == one["counters"]
+    assert 0 < five["lockstep"]["steps"] < five["lockstep"]["skipped"]  # resting processes were not asked
     assert one["counters"]["photos_taken"] >= 1 and one["counters"]["photos_uploaded"] >= 1
     entered = states(tmp_path / "one" / "trace.jsonl")
     assert len(entered) > 3 and states(tmp_path / "five" / "trace.jsonl") == entered

@@ -150,6 +150,7 @@ def test_the_end_of_the_run_asks_a_resting_process_for_its_summary(nodes: tuple[
     result = SimpleNamespace(summary={"counters": {}})
     observer.finished(session, result)  # type: ignore[arg-type]
     assert result.summary["upload"] == {"photos_uploaded": 7}
+    assert result.summary["lockstep"] == {"steps": 1, "skipped": 2}
 
 
 def test_a_skill_reply_carries_whether_its_process_has_after_tick_work() -> None:

@@ -302,6 +302,8 @@ class LockstepObserver:
                 self.resting[process] = (seen, ticks + max(1, round(RECHECK_S / session.clock.period)))
 
     def finished(self, session: Any, result: RunResult) -> None:
+        # what lockstep cost: calls to other processes after ticks, and those saved while they rested
+        result.summary["lockstep"] = {"steps": self.steps, "skipped": self.skipped}
         for process, response in self._all(FINISH, session).items():
             if response is None:
                 result.summary.setdefault("processes_lost", []).append(process)  # its summary blocks are missing
