@@ -70,7 +70,7 @@ log = logging.getLogger(__name__)
 
 LOCKSTEP_TYPE = "botstage_msgs/srv/Lockstep"
 READY_TIMEOUT_S = 60.0
-RECHECK_S = 1.0  # mission time after which a resting process is stepped anyway (work from outside the mission)
+RECHECK_S = 5.0  # mission time after which a resting process is stepped anyway (work from outside the mission)
 STEP, FINISH = 0, 1
 
 
