@@ -292,6 +292,33 @@ def test_the_emulator_itself_refuses_unbounded_faults(emulator: LaunchpadEmulato
             fault(value)
 
 
+def test_ctrl_c_stops_botstage_started_with_sigint_ignored() -> None:
+    """A script's background job starts with SIGINT ignored (no job control): botstage takes it back."""
+    command = f"trap '' INT; exec {sys.executable} -m missions.cli emulate launchpad --start 10,7,0"
+    process = subprocess.Popen(
+        ["bash", "-c", command],
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "COLUMNS": "300"},
+    )
+    assert process.stdin is not None and process.stdout is not None
+    try:
+        process.stdin.write("status\n")  # its answer says the console, and so the emulator, runs
+        process.stdin.flush()
+        while not (line := process.stdout.readline()).startswith("pose ") and line:
+            pass
+        assert line.startswith("pose "), process.stderr.read()  # type: ignore[union-attr]
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=FAILSAFE_S) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
 def test_botstage_emulate_answers_every_line_of_its_console() -> None:
     process = subprocess.Popen(
         [sys.executable, "-m", "missions.cli", "emulate", "launchpad", "--start", "10,7,0"],

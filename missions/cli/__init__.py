@@ -6,7 +6,9 @@ says which verbs there are and in what order `botstage --help` lists them.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 from pathlib import Path
 
 import typer
@@ -37,6 +39,7 @@ def _options(
     ),
 ) -> None:
     """Orchestrate robots with behaviour trees and hierarchical state machines."""
+    _interruptible()
     for folder in include_dir:
         if not folder.is_dir():
             raise typer.BadParameter(f"{folder} is not a folder", param_hint="'--include-dir'")
@@ -76,3 +79,16 @@ app.command()(certs.certs)
 
 def main() -> None:  # pragma: no cover - console script entry
     app()
+
+
+def _interruptible() -> None:
+    """Let Ctrl-C and SIGINT stop botstage even if it was started with SIGINT ignored.
+
+    A shell without job control (a script, a CI step) starts background commands with SIGINT
+    ignored, and Python then keeps it ignored: `botstage serve ... &` could not be stopped by
+    `kill -INT`, and `botstage up`'s children, which it stops with SIGINT, would run on. Every
+    long-running command here documents Ctrl-C as its stop, so the default comes back.
+    """
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        with contextlib.suppress(ValueError):  # not the main thread (an in-process test runner)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
