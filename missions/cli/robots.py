@@ -111,8 +111,8 @@ def emulate(
                 console.print(reply, highlight=False, markup=False)
         stop.wait()  # end of input: keep running until Ctrl-C
 
-    threading.Thread(target=faults, daemon=True).start()
-    try:
+    try:  # the console starts inside: once it answers, Ctrl-C ends the run cleanly
+        threading.Thread(target=faults, daemon=True).start()
         while not stop.wait(0.5):
             pass
     except KeyboardInterrupt:
