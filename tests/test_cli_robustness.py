@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import select
+import shlex
 import signal
 import subprocess
 import sys
@@ -292,11 +293,13 @@ def test_the_emulator_itself_refuses_unbounded_faults(emulator: LaunchpadEmulato
             fault(value)
 
 
-def test_ctrl_c_stops_botstage_started_with_sigint_ignored() -> None:
-    """A script's background job starts with SIGINT ignored (no job control): botstage takes it back."""
-    command = f"trap '' INT; exec {sys.executable} -m missions.cli emulate launchpad --start 10,7,0"
+EMULATE = [sys.executable, "-m", "missions.cli", "emulate", "launchpad", "--start", "10,7,0"]
+
+
+def emulator_console(command: list[str]) -> subprocess.Popen[str]:
+    """``botstage emulate`` started by ``command``, its console on pipes."""
     process = subprocess.Popen(
-        ["bash", "-c", command],
+        command,
         cwd=ROOT,
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
@@ -304,6 +307,13 @@ def test_ctrl_c_stops_botstage_started_with_sigint_ignored() -> None:
         text=True,
         env={**os.environ, "COLUMNS": "300"},
     )
+    assert process.stdin is not None and process.stdout is not None
+    return process
+
+
+def test_ctrl_c_stops_botstage_started_with_sigint_ignored() -> None:
+    """A script's background job starts with SIGINT ignored (no job control): botstage takes it back."""
+    process = emulator_console(["bash", "-c", f"trap '' INT; exec {shlex.join(EMULATE)}"])
     assert process.stdin is not None and process.stdout is not None
     try:
         process.stdin.write("status\n")  # its answer says the console, and so the emulator, runs
@@ -320,15 +330,7 @@ def test_ctrl_c_stops_botstage_started_with_sigint_ignored() -> None:
 
 
 def test_botstage_emulate_answers_every_line_of_its_console() -> None:
-    process = subprocess.Popen(
-        [sys.executable, "-m", "missions.cli", "emulate", "launchpad", "--start", "10,7,0"],
-        cwd=ROOT,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "COLUMNS": "300"},
-    )
+    process = emulator_console(EMULATE)
     assert process.stdin is not None and process.stdout is not None
     received = ""
     try:

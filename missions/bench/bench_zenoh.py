@@ -80,6 +80,7 @@ FAR = "bench_far"
 SKILL, INPUTS = "wait", {"duration": 0.0}  # ends in its first step
 RAW_CALL = "bench/raw/call"
 FLOOR_CALL = "bench/floor/call"
+REQUEST_TYPE, RESPONSE_TYPE = f"{SERVICE_TYPE}_Request", f"{SERVICE_TYPE}_Response"
 ECHO = f"/{FAR}/echo"  # SkillTick answered at once, without a skill host
 ENDED = TickReply(State.ENDED, "success")  # what the benched call answers
 STREAMS: dict[str, tuple[str, str, float]] = {  # kind -> topic, type, rate (Hz)
@@ -199,12 +200,12 @@ class Far:
 
 def floor_answer(response: Any) -> Callable[[zenoh.Query], None]:
     """The floor's server: read the request's attachment and CDR, reply ``response``'s CDR with an attachment."""
-    store, request_type, response_type = types.type_store(), f"{SERVICE_TYPE}_Request", f"{SERVICE_TYPE}_Response"
+    store = types.type_store()
 
     def answer(query: zenoh.Query) -> None:
         sequence, _, gid = attachments.unpack(query.attachment.to_bytes())  # type: ignore[union-attr]
-        store.deserialize_cdr(query.payload.to_bytes(), request_type)  # type: ignore[union-attr]
-        payload = bytes(store.serialize_cdr(response, response_type))
+        store.deserialize_cdr(query.payload.to_bytes(), REQUEST_TYPE)  # type: ignore[union-attr]
+        payload = bytes(store.serialize_cdr(response, RESPONSE_TYPE))
         query.reply(FLOOR_CALL, payload, attachment=attachments.pack(sequence, time.time_ns(), gid))
         query.drop()
 
@@ -332,7 +333,7 @@ def _floor_call_seconds(session: zenoh.Session, request: Any, gid: bytes, sequen
     sequence[0] += 1
     replies = session.get(
         FLOOR_CALL,
-        payload=bytes(store.serialize_cdr(request, f"{SERVICE_TYPE}_Request")),
+        payload=bytes(store.serialize_cdr(request, REQUEST_TYPE)),
         attachment=attachments.pack(sequence[0], time.time_ns(), gid),
         target=zenoh.QueryTarget.ALL_COMPLETE,
         consolidation=zenoh.ConsolidationMode.NONE,
@@ -342,7 +343,7 @@ def _floor_call_seconds(session: zenoh.Session, request: Any, gid: bytes, sequen
         raise RuntimeError("the floor's queryable replied an error")
     if attachments.unpack(sample.attachment.to_bytes())[0] != sequence[0]:
         raise RuntimeError("the floor's reply answers another call")
-    store.deserialize_cdr(sample.payload.to_bytes(), f"{SERVICE_TYPE}_Response")
+    store.deserialize_cdr(sample.payload.to_bytes(), RESPONSE_TYPE)
     return time.perf_counter() - began
 
 

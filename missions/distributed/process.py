@@ -272,6 +272,10 @@ class LockstepObserver:
         calls = {process: self._send(process, kind, session) for process in processes or self.clients}
         return {process: self._answer(process, call, session) for process, call in calls.items()}
 
+    def _seen(self, process: str) -> tuple[int, frozenset[str]]:
+        """What says whether a resting process still rests: the work given to it, the sessions serving it."""
+        return self.work_given(process), self.clients[process].servers.zids()
+
     def _still_resting(self, process: str, ticks: int) -> bool:
         """Whether ``process`` rests on at tick ``ticks``: no work given to it since, the same sessions
         serve it, and its recheck is not due."""
@@ -279,7 +283,7 @@ class LockstepObserver:
         if rested is None:
             return False
         seen, recheck = rested
-        if ticks < recheck and seen == (self.work_given(process), self.clients[process].servers.zids()):
+        if ticks < recheck and seen == self._seen(process):
             return True
         del self.resting[process]  # stepped again (gone: said so by the step that finds it missing)
         return False
@@ -298,8 +302,7 @@ class LockstepObserver:
             return
         for process, response in self._all(STEP, session, due).items():
             if response is not None and response.resting:
-                seen = (self.work_given(process), self.clients[process].servers.zids())
-                self.resting[process] = (seen, ticks + max(1, round(RECHECK_S / session.clock.period)))
+                self.resting[process] = (self._seen(process), ticks + max(1, round(RECHECK_S / session.clock.period)))
 
     def finished(self, session: Any, result: RunResult) -> None:
         # what lockstep cost: calls to other processes after ticks, and those saved while they rested
