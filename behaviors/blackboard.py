@@ -17,9 +17,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import py_trees
-
-from behaviors.trace import Trace, jsonable
-from skills.base import MISSING, check_type, type_name
+from botstage.behaviors.trace import Trace, jsonable
+from botstage.skills.base import MISSING, check_type, type_name
 
 _KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 _instances = itertools.count()

@@ -11,7 +11,7 @@ A node spec is a mapping with one *kind* key and optional options beside it::
     {"subtree": "approach", "remap": {"target": "crowd_centre"}}
     {"machine": "docking"}                         # a named (or inline) state machine
 
-Which kinds exist, and how each is built, is the node-kind registry's (``behaviors.kinds``);
+Which kinds exist, and how each is built, is the node-kind registry's (``botstage.behaviors.kinds``);
 the builder reads a spec's shape, checks it and names the nodes. Inputs are literals, or
 blackboard keys written ``"{key}"`` (YAML's ``{key}`` also works). Every problem is collected
 with the spec path where it was found, then raised together.
@@ -25,18 +25,17 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import py_trees
+from botstage.behaviors.blackboard import BlackboardError, normalise_key
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeBuild, NodeKind, NodeKinds
+from botstage.behaviors.kinds.base import argument_adapter
+from botstage.behaviors.machine import MachineBehaviour, MachinePlan
+from botstage.behaviors.machine_plan import MachinePlanner
+from botstage.behaviors.runtime import Runtime
+from botstage.behaviors.skill_binding import SkillBinder, success_outcomes
+from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.limits import MAX_NODE_DEPTH
+from botstage.skills.expression import Expression, ExpressionError, compile_expression, key_of
 from pydantic import ValidationError
-
-from behaviors.blackboard import BlackboardError, normalise_key
-from behaviors.kinds import CompositeKind, DecoratorKind, NodeBuild, NodeKind, NodeKinds
-from behaviors.kinds.base import argument_adapter
-from behaviors.machine import MachineBehaviour, MachinePlan
-from behaviors.machine_plan import MachinePlanner
-from behaviors.runtime import Runtime
-from behaviors.skill_binding import SkillBinder, success_outcomes
-from behaviors.suggest import did_you_mean
-from robots.limits import MAX_NODE_DEPTH
-from skills.expression import Expression, ExpressionError, compile_expression, key_of
 
 __all__ = ["Builder", "KeyUsage", "Scope", "SpecError", "SpecPath", "SpecProblem", "remap_condition", "remap_key"]
 

@@ -1,7 +1,7 @@
 """Decorators that need the mission clock or blackboard conditions.
 
 py_trees' own Timeout reads the wall clock, and its EternalGuard takes Python callables; these
-take the mission clock and a condition from ``skills.expression`` instead, and always leave a
+take the mission clock and a condition from ``botstage.skills.expression`` instead, and always leave a
 reason for the trace when they fail.
 """
 
@@ -11,13 +11,12 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import py_trees
+from botstage.behaviors.blackboard import BlackboardError
+from botstage.skills.expression import EvaluationError, Expression
 from py_trees.common import Status
 
-from behaviors.blackboard import BlackboardError
-from skills.expression import EvaluationError, Expression
-
 if TYPE_CHECKING:
-    from behaviors.runtime import Runtime
+    from botstage.behaviors.runtime import Runtime
 
 
 class _ReasonedDecorator(py_trees.decorators.Decorator):

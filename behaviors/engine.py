@@ -12,16 +12,15 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 import py_trees
+from botstage.behaviors.blackboard import Blackboard
+from botstage.behaviors.builder import Builder
+from botstage.behaviors.kinds import NodeKinds
+from botstage.behaviors.trace import Trace
+from botstage.robots.clock import Clock, SimClock
+from botstage.skills.base import Outcome
+from botstage.skills.registry import Registry
+from botstage.skills.workers import Workers
 from py_trees.common import Status
-
-from behaviors.blackboard import Blackboard
-from behaviors.builder import Builder
-from behaviors.kinds import NodeKinds
-from behaviors.trace import Trace
-from robots.clock import Clock, SimClock
-from skills.base import Outcome
-from skills.registry import Registry
-from skills.workers import Workers
 
 
 class Engine:

@@ -19,15 +19,14 @@ from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+from botstage.behaviors.blackboard import BlackboardError
+from botstage.skills.base import Outcome
+from botstage.skills.expression import EvaluationError, Expression, compile_expression
 from py_trees.common import Status
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
-from behaviors.blackboard import BlackboardError
-from skills.base import Outcome
-from skills.expression import EvaluationError, Expression, compile_expression
-
 if TYPE_CHECKING:
-    from behaviors.runtime import Runtime
+    from botstage.behaviors.runtime import Runtime
 
 IDLE = "__idle__"
 START = "__start__"

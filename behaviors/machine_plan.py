@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from behaviors.machine import (
+from botstage.behaviors.machine import (
     Action,
     Level,
     MachineBehaviour,
@@ -19,12 +19,12 @@ from behaviors.machine import (
     resolve_outcome,
     resolve_target,
 )
-from behaviors.suggest import did_you_mean
-from robots.limits import PositiveSeconds, number_problem
-from skills.expression import Expression
+from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.limits import PositiveSeconds, number_problem
+from botstage.skills.expression import Expression
 
 if TYPE_CHECKING:
-    from behaviors.builder import Builder, Scope, SpecPath
+    from botstage.behaviors.builder import Builder, Scope, SpecPath
 
 STATE_KEYS = {
     "skill",

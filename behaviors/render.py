@@ -17,11 +17,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
-
-from behaviors.kinds import Described
-from behaviors.kinds.leaves import describe_skill
-from behaviors.machine import MachineBehaviour, MachinePlan
-from behaviors.skill_behaviour import SkillBehaviour
+from botstage.behaviors.kinds import Described
+from botstage.behaviors.kinds.leaves import describe_skill
+from botstage.behaviors.machine import MachineBehaviour, MachinePlan
+from botstage.behaviors.skill_behaviour import SkillBehaviour
 
 FORMATS = ("ascii", "unicode", "dot", "svg", "png", "mermaid", "json")
 TREE_FORMATS = MACHINE_FORMATS = FORMATS  # trees and machines are drawn in every format alike

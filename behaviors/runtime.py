@@ -13,13 +13,12 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     import py_trees
-
-    from behaviors.blackboard import Blackboard
-    from behaviors.trace import Trace
-    from robots.clock import Clock
-    from skills.base import Outcome
-    from skills.registry import Registry
-    from skills.workers import Workers
+    from botstage.behaviors.blackboard import Blackboard
+    from botstage.behaviors.trace import Trace
+    from botstage.robots.clock import Clock
+    from botstage.skills.base import Outcome
+    from botstage.skills.registry import Registry
+    from botstage.skills.workers import Workers
 
 
 class Runtime(Protocol):

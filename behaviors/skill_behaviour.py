@@ -18,16 +18,15 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+from botstage.behaviors.blackboard import BlackboardError
+from botstage.behaviors.trace import jsonable
+from botstage.skills.base import FAILURE, Outcome, Skill, SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.expression import ExpressionError, compile_expression
 from py_trees.common import Status
 
-from behaviors.blackboard import BlackboardError
-from behaviors.trace import jsonable
-from skills.base import FAILURE, Outcome, Skill, SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.expression import ExpressionError, compile_expression
-
 if TYPE_CHECKING:
-    from behaviors.runtime import Runtime
+    from botstage.behaviors.runtime import Runtime
 
 _NO_OUTPUTS: dict[str, Any] = {}  # shared by every trace event without outputs; never mutated
 

@@ -7,15 +7,14 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
+from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
+from botstage.behaviors.suggest import did_you_mean
+from botstage.skills.base import MISSING, Skill, check_type
+from botstage.skills.registry import UnknownSkillError
 from pydantic import ValidationError
 
-from behaviors.skill_behaviour import KeyRef, SkillBehaviour
-from behaviors.suggest import did_you_mean
-from skills.base import MISSING, Skill, check_type
-from skills.registry import UnknownSkillError
-
 if TYPE_CHECKING:
-    from behaviors.builder import Builder, Scope, SpecPath
+    from botstage.behaviors.builder import Builder, Scope, SpecPath
 
 
 def parse_binding(value: Any) -> Any:

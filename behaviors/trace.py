@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import IO, Any
 
-from robots.clock import Clock
+from botstage.robots.clock import Clock
 
 Listener = Callable[[dict[str, Any]], None]
 

@@ -21,23 +21,22 @@ from pathlib import Path
 from typing import Any
 
 import py_trees
+from botstage.behaviors.blackboard import BlackboardError, normalise_key
+from botstage.behaviors.builder import Builder, KeyUsage, SpecError, SpecPath
+from botstage.behaviors.engine import Engine
+from botstage.behaviors.kinds import NodeKinds
+from botstage.behaviors.machine import MachinePlan
+from botstage.behaviors.render import Item, describe
+from botstage.behaviors.suggest import did_you_mean
+from botstage.missions.loader import Loaded, Location, Locations, Problem, load
+from botstage.missions.schema import Mission, key_spec, parse_type
+from botstage.robots.clock import SimClock
+from botstage.skills.base import check_type, plain_type, type_name
+from botstage.skills.registry import Registry
 from pydantic import ValidationError
 
-from behaviors.blackboard import BlackboardError, normalise_key
-from behaviors.builder import Builder, KeyUsage, SpecError, SpecPath
-from behaviors.engine import Engine
-from behaviors.kinds import NodeKinds
-from behaviors.machine import MachinePlan
-from behaviors.render import Item, describe
-from behaviors.suggest import did_you_mean
-from missions.loader import Loaded, Location, Locations, Problem, load
-from missions.schema import Mission, key_spec, parse_type
-from robots.clock import SimClock
-from skills.base import check_type, plain_type, type_name
-from skills.registry import Registry
-
 if typing.TYPE_CHECKING:
-    from robots.gridmap import GridMap
+    from botstage.robots.gridmap import GridMap
 
 
 @dataclass
@@ -86,7 +85,7 @@ def check(
     """Load and check a mission file; never raises for a bad mission.
 
     ``include_dirs``: folders its includes may come from besides its own folder tree and the
-    built-in library (see ``missions.loader.load``). A bug in the checker itself is reported as
+    built-in library (see ``botstage.missions.loader.load``). A bug in the checker itself is reported as
     a located problem too (and asks to be reported), never as a traceback in the user's face.
     """
     path = Path(path)
@@ -237,7 +236,7 @@ def check_write(key: Any, value: Any, key_types: dict[str, Any]) -> tuple[str | 
 
 
 def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collector) -> None:
-    from robots.profile import known_profiles, load_profile, profile_path
+    from botstage.robots.profile import known_profiles, load_profile, profile_path
 
     if mission.robot is not None:
         found = profile_path(mission.robot, path.parent)
@@ -275,7 +274,7 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
 def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
     """Each walk's points are places of the map or [x, y], and a person fits all along its path
     (free floor, a person's radius from walls), so a walker is never stuck where it was sent."""
-    from robots.sim.people import first_blocked, standable
+    from botstage.robots.sim.people import first_blocked, standable
 
     room = standable(grid) if mission.walks else None
     for index, walk in enumerate(mission.walks):
@@ -306,8 +305,8 @@ def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
 
 
 def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
-    from robots.gridmap import MapError, load
-    from robots.sim.backend import known_maps, map_path
+    from botstage.robots.gridmap import MapError, load
+    from botstage.robots.sim.backend import known_maps, map_path
 
     assert mission.world is not None
     found = map_path(mission.world, path.parent)

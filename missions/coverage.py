@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from behaviors.render import Item
-from missions.check import check, describe_part
-from missions.loader import display_name
+from botstage.behaviors.render import Item
+from botstage.missions.check import check, describe_part
+from botstage.missions.loader import display_name
 
 
 def _walk(item: Item) -> Iterator[Item]:

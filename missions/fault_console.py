@@ -10,10 +10,10 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from robots.emulators.launchpad import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, WHEELS
+from botstage.robots.emulators.launchpad import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, WHEELS
 
 if TYPE_CHECKING:
-    from robots.emulators.pty_board import PtyBoard
+    from botstage.robots.emulators.pty_board import PtyBoard
 
 FAULTS = "garbage N, drop N, stall left|right|none (wheels only), unplug SECONDS, reset, status"
 USAGE = {

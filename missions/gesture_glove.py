@@ -17,8 +17,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from robots.clock import Clock
-from robots.emulators.imu_arduino import PUBLISH_HZ, HandScript
+from botstage.robots.clock import Clock
+from botstage.robots.emulators.imu_arduino import PUBLISH_HZ, HandScript
 
 PORT_VARIABLE = "BOTSTAGE_IMU_PORT"
 
@@ -56,8 +56,8 @@ class RosserialGlove:
         self._last: tuple[float, HandSample] | None = None  # the driver's last sample, as given out
 
     def _open(self) -> Any:
-        from robots.drivers.rosserial import RosserialDriver
-        from robots.emulators.imu_arduino import ImuArduino
+        from botstage.robots.drivers.rosserial import RosserialDriver
+        from botstage.robots.emulators.imu_arduino import ImuArduino
 
         port = self.port
         if port is None:

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from robots import limits
-from robots.located_yaml import (
+from botstage.robots import limits
+from botstage.robots.located_yaml import (
     MISSING_FILE,
     Budget,
     Loaded,
@@ -68,7 +68,7 @@ def load(path: str | Path, include_dirs: Iterable[str | Path] = ()) -> Loaded:
     includes may come from (``BOTSTAGE_INCLUDE_PATH`` adds more)."""
     path = Path(path)
     if path.suffix.lower() == ".xml":  # a BehaviorTree.CPP v4 tree, read as the mission it describes
-        from behaviors.btcpp.to_spec import load_xml
+        from botstage.behaviors.btcpp.to_spec import load_xml
 
         return load_xml(path)
     locations = Locations(root=Location(display_name(path), 1, 1))

@@ -15,7 +15,7 @@ import time
 import uuid
 from pathlib import Path
 
-from skills.delivery.inbox import ACCEPTS, OrderError, parse_order, write_atomically
+from botstage.skills.delivery.inbox import ACCEPTS, OrderError, parse_order, write_atomically
 
 
 def running_inboxes(runs: Path) -> list[Path]:

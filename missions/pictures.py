@@ -7,11 +7,11 @@ import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
-from behaviors.render import FORMATS, GraphvizMissing, Item, Statuses, group, machines_in, render, statuses_at
-from behaviors.trace import read_jsonl
-from missions.check import Checked, check, describe_part
-from missions.coverage import untested_of
-from missions.loader import Problem
+from botstage.behaviors.render import FORMATS, GraphvizMissing, Item, Statuses, group, machines_in, render, statuses_at
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.check import Checked, check, describe_part
+from botstage.missions.coverage import untested_of
+from botstage.missions.loader import Problem
 
 
 class InvalidMission(Exception):

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import math
 
-from robots.gridmap import GridMap, MapError
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.profile import Profile, load_profile, profile_path
-from robots.sim.backend import map_path
+from botstage.robots.gridmap import GridMap, MapError
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, load_profile, profile_path
+from botstage.robots.sim.backend import map_path
 
 
 class PlaceError(Exception):

@@ -12,9 +12,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from missions.scenario import Result, Scenario, load_scenario
-from missions.scenario_suite import run_in_folder
+from botstage.missions.scenario import Result, Scenario, load_scenario
+from botstage.missions.scenario_suite import run_in_folder
 
 
 def is_scenario(path: Path, root: Path) -> bool:

@@ -19,12 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from botstage.behaviors.blackboard import BlackboardError, normalise_key
+from botstage.missions.steering import ESTOP, TELEOP_ENDED, TeleopStretch, read_teleop_note
+from botstage.skills.base import MISSING, Skill, check_type
+from botstage.skills.registry import Registry
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
-
-from behaviors.blackboard import BlackboardError, normalise_key
-from missions.steering import ESTOP, TELEOP_ENDED, TeleopStretch, read_teleop_note
-from skills.base import MISSING, Skill, check_type
-from skills.registry import Registry
 
 # Built-in skills that only read and write the blackboard and read the clock: they run for real in
 # a replay, unless the recorded run was a scenario that mocked them.
@@ -301,7 +300,7 @@ def _restored(types: dict[str, Any], name: str, value: Any) -> Any:
 
 def _mission(mission: Path, registry: Registry) -> tuple[str, dict[str, Any]]:
     """The mission's name and declared key types (none if it cannot be checked now)."""
-    from missions.check import check
+    from botstage.missions.check import check
 
     if not mission.is_file():
         return mission.stem, {}

@@ -21,10 +21,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from behaviors.render import GraphvizMissing, graphviz, to_dot, to_text
-from missions.check import Checked, describe_part
-from missions.transcript import read_transcript
-from skills.display import LAYOUTS
+from botstage.behaviors.render import GraphvizMissing, graphviz, to_dot, to_text
+from botstage.missions.check import Checked, describe_part
+from botstage.missions.transcript import read_transcript
+from botstage.skills.display import LAYOUTS
 
 MAX_ROWS = 2000
 MAX_PHOTOS = 60
@@ -177,9 +177,8 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-
-    from robots.gridmap import FREE, OCCUPIED, load
-    from robots.sim.backend import map_path
+    from botstage.robots.gridmap import FREE, OCCUPIED, load
+    from botstage.robots.sim.backend import map_path
 
     found = map_path(mission.world, checked.path.parent)
     assert found is not None

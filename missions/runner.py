@@ -12,9 +12,9 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from behaviors.engine import Engine
-from behaviors.kinds import NodeKinds
-from missions.session import (
+from botstage.behaviors.engine import Engine
+from botstage.behaviors.kinds import NodeKinds
+from botstage.missions.session import (
     WALL_CLOCK_FIELDS,
     MissionInvalid,
     Progress,
@@ -28,8 +28,8 @@ from missions.session import (
     run_folder,
     running_skills,
 )
-from robots.backend_registry import DEFAULT, BackendRegistry
-from skills.registry import Registry
+from botstage.robots.backend_registry import DEFAULT, BackendRegistry
+from botstage.skills.registry import Registry
 
 __all__ = [
     "WALL_CLOCK_FIELDS",

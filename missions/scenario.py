@@ -49,22 +49,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+from botstage.behaviors.blackboard import MissingKeyError
+from botstage.behaviors.suggest import did_you_mean
+from botstage.missions.gallery.service import set_gallery
+from botstage.missions.loader import Loaded, Location, Problem, load
+from botstage.missions.mocks import Call, Rule, Write, calls_of, mock_of
+from botstage.missions.replay import from_trace
+from botstage.missions.runner import MissionInvalid, RunError, StopRun, run
+from botstage.missions.scenario_check import MissionFacts, check_against_mission, mission_facts
+from botstage.missions.session.observers import EventRecorder
+from botstage.missions.session.session import RunSession
+from botstage.missions.steering import drive_one_step, stop_everything
+from botstage.skills.base import Skill
+from botstage.skills.expression import EvaluationError, compile_expression
+from botstage.skills.registry import Registry
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
-
-from behaviors.blackboard import MissingKeyError
-from behaviors.suggest import did_you_mean
-from missions.gallery.service import set_gallery
-from missions.loader import Loaded, Location, Problem, load
-from missions.mocks import Call, Rule, Write, calls_of, mock_of
-from missions.replay import from_trace
-from missions.runner import MissionInvalid, RunError, StopRun, run
-from missions.scenario_check import MissionFacts, check_against_mission, mission_facts
-from missions.session.observers import EventRecorder
-from missions.session.session import RunSession
-from missions.steering import drive_one_step, stop_everything
-from skills.base import Skill
-from skills.expression import EvaluationError, compile_expression
-from skills.registry import Registry
 
 __all__ = [
     "Call",

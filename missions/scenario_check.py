@@ -13,19 +13,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from behaviors.blackboard import BlackboardError, normalise_key
-from behaviors.render import Item
-from behaviors.suggest import did_you_mean
-from behaviors.trace import FIELDS
-from missions.check import check, check_write, describe_part
-from missions.mocks import calls_of
-from skills.base import type_name
-from skills.expression import ExpressionError, compile_expression
-from skills.registry import Registry
+from botstage.behaviors.blackboard import BlackboardError, normalise_key
+from botstage.behaviors.render import Item
+from botstage.behaviors.suggest import did_you_mean
+from botstage.behaviors.trace import FIELDS
+from botstage.missions.check import check, check_write, describe_part
+from botstage.missions.mocks import calls_of
+from botstage.skills.base import type_name
+from botstage.skills.expression import ExpressionError, compile_expression
+from botstage.skills.registry import Registry
 
 if TYPE_CHECKING:
-    from missions.mocks import Script
-    from missions.scenario import ScenarioSpec
+    from botstage.missions.mocks import Script
+    from botstage.missions.scenario import ScenarioSpec
 
 At = Callable[..., None]  # at(where, message, hint="")
 Where = tuple[str | int, ...]

@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from missions.scenario import Result, Scenario, load_scenario, run_scenario
+from botstage.missions.scenario import Result, Scenario, load_scenario, run_scenario
 
 
 class SuiteError(Exception):

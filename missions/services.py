@@ -12,16 +12,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from robots.clock import Clock
-from robots.gridmap import GridMap
-from robots.interfaces import Pose2D
-from robots.profile import Profile
-from robots.sim.backend import SimBackend
-from skills.nav.ekf import wrap
-from skills.nav.localization import Localizer
-from skills.nav.stack import NavStack
-from skills.perception.camera_people import CameraPeopleTracker
-from skills.perception.people_tracking import PeopleTracking
+from botstage.robots.clock import Clock
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile
+from botstage.robots.sim.backend import SimBackend
+from botstage.skills.nav.ekf import wrap
+from botstage.skills.nav.localization import Localizer
+from botstage.skills.nav.stack import NavStack
+from botstage.skills.perception.camera_people import CameraPeopleTracker
+from botstage.skills.perception.people_tracking import PeopleTracking
 
 
 @dataclass

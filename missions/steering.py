@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from missions.session.session import RunSession
+    from botstage.missions.session.session import RunSession
 
 ESTOP = "e-stop from the monitor"
 ESTOP_RELEASED = "e-stop released by the operator"

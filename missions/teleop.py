@@ -26,12 +26,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any, Protocol
 
-from robots.clock import Clock
-from robots.interfaces import Drive, Odometry, OdometryReading, Pose2D
+from botstage.robots.clock import Clock
+from botstage.robots.interfaces import Drive, Odometry, OdometryReading, Pose2D
 
 if TYPE_CHECKING:
-    from robots.profile import Profile
-    from robots.ros2.topic_robot import Ros2Backend
+    from botstage.robots.profile import Profile
+    from botstage.robots.ros2.topic_robot import Ros2Backend
 
 HELP = "w/x or up/down: faster forward/back   a/d or left/right: turn left/right   s or space: stop   q: quit"
 
@@ -223,10 +223,10 @@ def open_served(
     its ``cmd_vel`` arrives only with the operator's certificate or the mission's
     (missions/distributed/security.py); with another, the robot never moves nor answers.
     """
-    from robots.backend import OpenRequest
-    from robots.ros2.backend import Ros2Options
-    from robots.ros2.node import DEFAULT_LISTEN, Ros2Node
-    from robots.ros2.topic_robot import Ros2Backend
+    from botstage.robots.backend import OpenRequest
+    from botstage.robots.ros2.backend import Ros2Options
+    from botstage.robots.ros2.node import DEFAULT_LISTEN, Ros2Node
+    from botstage.robots.ros2.topic_robot import Ros2Backend
 
     if "drive" not in profile.interfaces:
         raise ValueError(f"robot {profile.name!r} has no drive")

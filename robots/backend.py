@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 from pydantic import BaseModel, ConfigDict
 
 if TYPE_CHECKING:  # kept light: listing the backends (the CLI's --help) loads no maps, numpy or profiles
-    from robots.clock import Clock
-    from robots.gridmap import GridMap
-    from robots.interfaces import Pose2D
-    from robots.located_yaml import Problem
-    from robots.profile import Profile
+    from botstage.robots.clock import Clock
+    from botstage.robots.gridmap import GridMap
+    from botstage.robots.interfaces import Pose2D
+    from botstage.robots.located_yaml import Problem
+    from botstage.robots.profile import Profile
 
 ENTRY_POINT_GROUP = "botstage.backends"
 

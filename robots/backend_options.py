@@ -14,11 +14,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import yaml
+from botstage.robots.backend import BackendError, BackendKind, BackendOptions
+from botstage.robots.located_yaml import Location, Locations, Problem
+from botstage.robots.profile import Profile
 from pydantic import ValidationError
-
-from robots.backend import BackendError, BackendKind, BackendOptions
-from robots.located_yaml import Location, Locations, Problem
-from robots.profile import Profile
 
 
 @dataclass(frozen=True)

@@ -13,18 +13,18 @@ import importlib
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from robots.backend import ENTRY_POINT_GROUP, Backend, BackendError, BackendKind, BackendOptions, OpenRequest
-from robots.plugins import PluginProblem, discover
+from botstage.robots.backend import ENTRY_POINT_GROUP, Backend, BackendError, BackendKind, BackendOptions, OpenRequest
+from botstage.robots.plugins import PluginProblem, discover
 
 if TYPE_CHECKING:
-    from robots.backend_options import OptionSources
-    from robots.located_yaml import Locations
+    from botstage.robots.backend_options import OptionSources
+    from botstage.robots.located_yaml import Locations
 
 BUILTIN = (
-    "robots.sim.kind:SimKind",
-    "robots.emulators.kind:EmulatorKind",
-    "robots.drivers.kind:HardwareKind",
-    "robots.ros2.backend:Ros2Kind",
+    "botstage.robots.sim.kind:SimKind",
+    "botstage.robots.emulators.kind:EmulatorKind",
+    "botstage.robots.drivers.kind:HardwareKind",
+    "botstage.robots.ros2.backend:Ros2Kind",
 )
 DEFAULT = "sim"
 
@@ -118,7 +118,7 @@ class BackendRegistry:
         locations: Locations | None = None,
     ) -> tuple[BackendKind, Backend]:
         """Open backend ``name`` for ``request`` with its options (profile's, then ``given``), checked first."""
-        from robots.backend_options import resolve
+        from botstage.robots.backend_options import resolve
 
         kind = self.get(name)
         options = resolve(kind, request.profile, locations, given)

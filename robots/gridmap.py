@@ -18,9 +18,8 @@ from typing import Any
 
 import numpy as np
 import yaml
-
-from robots.limits import MAX_IMAGE_BYTES
-from robots.located_yaml import FileRefused, NotText, YamlProblem, load_data, read_bytes
+from botstage.robots.limits import MAX_IMAGE_BYTES
+from botstage.robots.located_yaml import FileRefused, NotText, YamlProblem, load_data, read_bytes
 
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 MODES = ("trinary", "scale", "raw")

@@ -5,7 +5,7 @@ plain Python data from it, so each mapping entry and sequence item keeps where i
 duplicate keys are caught (PyYAML silently keeps the last one). Nothing here raises for bad
 input: every problem is collected with its location.
 
-The files are input from anyone, so reading is bounded (``robots.limits``): only regular files of
+The files are input from anyone, so reading is bounded (``botstage.robots.limits``): only regular files of
 at most ``MAX_FILE_BYTES``, nesting at most ``MAX_NESTING`` deep, at most ``MAX_VALUES`` values of
 which ``MAX_ALIAS_VALUES`` repeated by aliases (a "billion laughs" stops at once). Numbers follow
 YAML 1.2 where 1.1 surprises: ``1e5`` and ``1.0e308`` are floats, not strings.
@@ -22,10 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from botstage.robots import limits
 from yaml.constructor import SafeConstructor
 from yaml.resolver import Resolver
-
-from robots import limits
 
 Path_ = tuple[str | int, ...]
 

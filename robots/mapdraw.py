@@ -1,6 +1,6 @@
 """The maps botstage ships, drawn by code so they can be regenerated and reviewed.
 
-``python -m robots.mapdraw`` rewrites ``robots/maps/`` (map_server YAML + PGM + named places):
+``python -m botstage.robots.mapdraw`` rewrites ``robots/maps/`` (map_server YAML + PGM + named places):
 
 - ``museum``: a 30 x 20 m exhibition hall (PeopleBot): an entrance lobby, exhibits on plinths,
   pillars, a side gallery through a doorway, and the checkpoints the robot patrols.
@@ -13,8 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
-from robots.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap, save
+from botstage.robots.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap, save
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 RESOLUTION = 0.05

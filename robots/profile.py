@@ -20,13 +20,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+from botstage.robots import PROFILES_DIR
+from botstage.robots.gaits import Gaits
+from botstage.robots.interfaces import INTERFACES
+from botstage.robots.located_yaml import Loaded, Problem, find_yaml, load_document
+from botstage.robots.ros2.topics import check_section
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
-
-from robots import PROFILES_DIR
-from robots.gaits import Gaits
-from robots.interfaces import INTERFACES
-from robots.located_yaml import Loaded, Problem, find_yaml, load_document
-from robots.ros2.topics import check_section
 
 MOTION_LIMITS = ("max_linear_accel", "max_angular_accel", "max_linear_decel")  # what a fixed base may not give
 LEGGED_STAND_IN = (0.05, 1000)  # a legged base's wheel diameter (m) and ticks per turn, in the simulator only

@@ -4,6 +4,6 @@ Skills never import py_trees or transitions: the same skill runs inside a behavi
 inside a state of a state machine, in a scenario test and in a remote process.
 """
 
-from skills.base import In, Out, Outcome, Port, Skill, SkillContext
+from botstage.skills.base import In, Out, Outcome, Port, Skill, SkillContext
 
 __all__ = ["In", "Out", "Outcome", "Port", "Skill", "SkillContext"]

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from skills.base import In, SkillContext, SkillRun
-from skills.navigate import CANCEL, GOAL, NAV_OUTPUTS, TIMEOUT, Navigate
+from botstage.skills.base import In, SkillContext, SkillRun
+from botstage.skills.navigate import CANCEL, GOAL, NAV_OUTPUTS, TIMEOUT, Navigate
 
 
 class BackToPoint(Navigate):

@@ -18,13 +18,12 @@ from functools import cache
 from types import MappingProxyType
 from typing import Annotated, Any, ClassVar, Literal, NamedTuple, Protocol, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, PydanticUserError, TypeAdapter, ValidationError
-
-from robots.clock import Clock
+from botstage.robots.clock import Clock
 
 # port types for times: In(Seconds) refuses negatives, NaN, infinities and more than MAX_SECONDS
-from robots.limits import PositiveSeconds as PositiveSeconds
-from robots.limits import Seconds as Seconds
+from botstage.robots.limits import PositiveSeconds as PositiveSeconds
+from botstage.robots.limits import Seconds as Seconds
+from pydantic import BaseModel, ConfigDict, PydanticUserError, TypeAdapter, ValidationError
 
 SUCCESS = "success"
 FAILURE = "failure"
@@ -98,7 +97,7 @@ class Port:
     """A typed input or output of a skill.
 
     ``expression`` marks a string input that is a condition over blackboard keys (see
-    ``skills.expression``): the engine grants the node read access to the keys it names.
+    ``botstage.skills.expression``): the engine grants the node read access to the keys it names.
     ``names_key`` marks a string input that names a blackboard key the skill reads or writes
     itself (``"read"``/``"write"``), so the engine can grant that access up front.
     """

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Skill, SkillContext
-from skills.expression import EvaluationError, compile_expression
+from botstage.skills.base import In, Outcome, Skill, SkillContext
+from botstage.skills.expression import EvaluationError, compile_expression
 
 
 def _shown(value: object) -> str:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Skill, SkillContext
+from botstage.skills.base import In, Outcome, Skill, SkillContext
 
 
 class Count(Skill):

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import math
 
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.perception.crowd import CROWD_DISTANCE
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.perception.crowd import CROWD_DISTANCE
 
 _EPSILON = 1e-9
 

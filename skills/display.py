@@ -13,7 +13,7 @@ current layout, so a typo in a mission never blanks the robot's face.
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.base import In, Outcome, Skill, SkillContext, SkillRun
 
 LAYOUTS = {
     "Layout_0": "default expression",

@@ -12,7 +12,7 @@ from concurrent.futures import Future
 from types import MappingProxyType
 from typing import Any
 
-from skills.base import FAILURE, MISSING, Outcome, Skill, SkillContext, check_type
+from botstage.skills.base import FAILURE, MISSING, Outcome, Skill, SkillContext, check_type
 
 
 def describe_exception(exc: BaseException) -> str:

@@ -5,7 +5,7 @@ Expressions are parsed with Python's ``ast`` and interpreted from a whitelist of
 no ``eval``, no attribute access on objects, no calls except a few pure functions.
 A dotted name ``robot.mode`` is the namespaced key ``robot/mode``.
 
-Conditions come from mission files, so their size is bounded (``robots.limits``): their length,
+Conditions come from mission files, so their size is bounded (``botstage.robots.limits``): their length,
 nesting and number of parts before anything is compiled, and at evaluation the lists and strings
 they build (``x * 1000000000``), the integers they multiply and the digits they round to.
 """
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
-from robots import limits
+from botstage.robots import limits
 
 Lookup = Callable[[str], Any]
 Evaluator = Callable[[Lookup], Any]

@@ -10,8 +10,8 @@ every way out.
 
 from __future__ import annotations
 
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.gesture import GestureCommands, GestureConfig
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.gesture import GestureCommands, GestureConfig
 
 
 class GestureDrive(Skill):

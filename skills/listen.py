@@ -16,12 +16,11 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.speech.recognizer import COMMANDS, MODES, Recognition, recognizer_named
+from botstage.skills.speech.vad import VoiceActivityDetector
+from botstage.skills.speech.wav import RATE
 from pydantic import BaseModel, Field
-
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.speech.recognizer import COMMANDS, MODES, Recognition, recognizer_named
-from skills.speech.vad import VoiceActivityDetector
-from skills.speech.wav import RATE
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 
-from skills.base import In, Outcome, Skill, SkillContext
+from botstage.skills.base import In, Outcome, Skill, SkillContext
 
 _LEVELS = {"debug": logging.DEBUG, "info": logging.INFO, "warning": logging.WARNING, "error": logging.ERROR}
 

@@ -22,9 +22,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.nav.stack import sonar_points
+from botstage.skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.nav.stack import sonar_points
 
 
 def _write(ctx: SkillContext, key: str, value: object) -> None:

@@ -8,10 +8,10 @@ first contact instead of pushing until the time is up.
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Skill, SkillContext, SkillRun
-from skills.nav.contact import ContactWatch
-from skills.nav.stack import NavStack
-from skills.nav.sweep import Sweep, sweep
+from botstage.skills.base import In, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.nav.contact import ContactWatch
+from botstage.skills.nav.stack import NavStack
+from botstage.skills.nav.sweep import Sweep, sweep
 
 RECHECK = 1.5  # m of the arc still to drive that is checked again every tick (people step in)
 MIN_MOVE = 0.01  # m: less room than this is none

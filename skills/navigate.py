@@ -5,10 +5,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.expression import EvaluationError, compile_expression
-from skills.nav.navigator import OUTCOMES, NavParams, NavResult, drive_to
-from skills.nav.stack import NavStack
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.expression import EvaluationError, compile_expression
+from botstage.skills.nav.navigator import OUTCOMES, NavParams, NavResult, drive_to
+from botstage.skills.nav.stack import NavStack
 
 GOAL = str | list[float]
 

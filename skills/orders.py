@@ -13,10 +13,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.delivery.inbox import Order, OrderError, parse_order
 from pydantic import BaseModel, ConfigDict, Field
-
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.delivery.inbox import Order, OrderError, parse_order
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9

@@ -18,10 +18,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.files import write_atomically
 from pydantic import BaseModel, ConfigDict, Field
-
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from skills.files import write_atomically
 
 
 class PhotoParams(BaseModel):

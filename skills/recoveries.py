@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import math
 
-from skills.base import In, Outcome, Skill, SkillContext, SkillRun
-from skills.nav.contact import ContactWatch
-from skills.nav.sweep import sweep
-from skills.navigate import nav_stack
+from botstage.skills.base import In, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.nav.contact import ContactWatch
+from botstage.skills.nav.sweep import sweep
+from botstage.skills.navigate import nav_stack
 
 MIN_BACK_UP = 0.02  # m: less room than this behind is none
 RECHECK = 1.5  # m of the way still to go that is checked again every tick (people step in)

@@ -15,36 +15,36 @@ import difflib
 import importlib
 from collections.abc import Iterable, Iterator
 
-from robots.plugins import PluginProblem, discover
-from skills.base import Skill
+from botstage.robots.plugins import PluginProblem, discover
+from botstage.skills.base import Skill
 
 __all__ = ["ENTRY_POINT_GROUP", "PluginProblem", "Registry", "UnknownSkillError", "suggest"]
 
 ENTRY_POINT_GROUP = "botstage.skills"
 BUILTIN_MODULES = (
-    "skills.wait",
-    "skills.log",
-    "skills.set",
-    "skills.count",
-    "skills.check",
-    "skills.move",
-    "skills.navigate",
-    "skills.back_to_point",
-    "skills.wander",
-    "skills.approach",
-    "skills.detect_crowd",
-    "skills.recoveries",
-    "skills.converse",
-    "skills.speak",
-    "skills.upload",
-    "skills.listen",
-    "skills.photo",
-    "skills.display",
-    "skills.wait_for",
-    "skills.orders",
-    "skills.monitors",
-    "skills.gesture_drive",
-    "skills.track_face",
+    "botstage.skills.wait",
+    "botstage.skills.log",
+    "botstage.skills.set",
+    "botstage.skills.count",
+    "botstage.skills.check",
+    "botstage.skills.move",
+    "botstage.skills.navigate",
+    "botstage.skills.back_to_point",
+    "botstage.skills.wander",
+    "botstage.skills.approach",
+    "botstage.skills.detect_crowd",
+    "botstage.skills.recoveries",
+    "botstage.skills.converse",
+    "botstage.skills.speak",
+    "botstage.skills.upload",
+    "botstage.skills.listen",
+    "botstage.skills.photo",
+    "botstage.skills.display",
+    "botstage.skills.wait_for",
+    "botstage.skills.orders",
+    "botstage.skills.monitors",
+    "botstage.skills.gesture_drive",
+    "botstage.skills.track_face",
 )
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from skills.base import In, Outcome, Skill, SkillContext
+from botstage.skills.base import In, Outcome, Skill, SkillContext
 
 
 class Set(Skill):

@@ -11,11 +11,10 @@ from __future__ import annotations
 
 from typing import Literal
 
+from botstage.robots.interfaces import AudioSpeaker
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.chat.tts import MAYA_VOICE, Speech, SpeechError, espeak_ng, synthesise
 from pydantic import BaseModel, ConfigDict, Field
-
-from robots.interfaces import AudioSpeaker
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from skills.chat.tts import MAYA_VOICE, Speech, SpeechError, espeak_ng, synthesise
 
 
 class SpeakParams(BaseModel):

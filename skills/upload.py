@@ -1,6 +1,6 @@
 """upload: put a photo in the run's outbox and let it go to the gallery in the background.
 
-The photo is copied into a durable outbox (``skills.outbox``) and the skill returns ``queued``
+The photo is copied into a durable outbox (``botstage.skills.outbox``) and the skill returns ``queued``
 as soon as it is safely on disk, in a tick or so; a worker then uploads it while the mission goes
 on, retrying with backoff if the gallery is down, and never twice. With ``wait: true`` the skill
 runs until the gallery has it (``uploaded``), refused it (``rejected``) or ``timeout`` seconds of
@@ -17,8 +17,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.outbox.settings import OutboxSettings
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.outbox.settings import OutboxSettings
 
 SHOWN_STATES = {"pending": "queued", "uploaded": "uploaded", "rejected": "rejected", "damaged": "damaged"}
 

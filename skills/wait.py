@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9

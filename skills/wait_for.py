@@ -6,8 +6,8 @@ a mission waits (a scenario's event, a monitor's flag, an operator's button).
 
 from __future__ import annotations
 
-from skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.expression import EvaluationError, compile_expression
+from botstage.skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.expression import EvaluationError, compile_expression
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9

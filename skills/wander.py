@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from skills.nav.navigator import NavParams, drive_to
-from skills.navigate import CANCEL, cancel_condition, nav_stack
+from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
+from botstage.skills.nav.navigator import NavParams, drive_to
+from botstage.skills.navigate import CANCEL, cancel_condition, nav_stack
 
 
 class Wander(Skill):

@@ -8,12 +8,11 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
+from botstage.behaviors.engine import Engine
+from botstage.robots.clock import SimClock
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.registry import Registry
 from hypothesis import HealthCheck, settings
-
-from behaviors.engine import Engine
-from robots.clock import SimClock
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from skills.registry import Registry
 
 # Property tests judge what is computed, never how long it took: a loaded CI machine (two cores,
 # two workers) made a 200 ms example deadline fail a correct test.
@@ -117,7 +116,7 @@ def index_of(events: list[dict[str, Any]], **match: Any) -> int:
 @pytest.fixture
 def gallery(tmp_path: Any) -> Iterator[Any]:
     """A real gallery server on a free loopback port, stopped after the test."""
-    from missions.gallery.server import start_gallery
+    from botstage.missions.gallery.server import start_gallery
 
     running = start_gallery(tmp_path / "gallery")
     yield running

@@ -19,8 +19,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from robots.drivers.launchpad_protocol import Message
-from robots.profile import Profile, load_profile, profile_path
+from botstage.robots.drivers.launchpad_protocol import Message
+from botstage.robots.profile import Profile, load_profile, profile_path
 
 FAILSAFE_S = 30.0  # the longest any wait may take before the test fails
 

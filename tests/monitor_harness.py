@@ -11,13 +11,12 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-
-from missions.monitor.control import Control
-from missions.monitor.hub import Hub
-from missions.monitor.observer import MonitorObserver
-from missions.monitor.replay import load_run
-from missions.monitor.server import start_monitor
-from missions.runner import RunResult, run
+from botstage.missions.monitor.control import Control
+from botstage.missions.monitor.hub import Hub
+from botstage.missions.monitor.observer import MonitorObserver
+from botstage.missions.monitor.replay import load_run
+from botstage.missions.monitor.server import start_monitor
+from botstage.missions.runner import RunResult, run
 
 ROOT = Path(__file__).resolve().parent.parent
 ENTERTAINER = ROOT / "missions" / "peoplebot_entertainer.yaml"

@@ -6,12 +6,12 @@ from __future__ import annotations
 import time
 
 import pytest
+from botstage.behaviors.engine import Engine
+from botstage.missions.bench.bench_tick import timeouts_spec
+from botstage.robots.clock import SimClock
+from botstage.skills.registry import Registry
 from py_trees.common import Status
 
-from behaviors.engine import Engine
-from missions.bench.bench_tick import timeouts_spec
-from robots.clock import SimClock
-from skills.registry import Registry
 from tests.conftest import TEST_SKILLS
 
 TREES = {

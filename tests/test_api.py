@@ -12,9 +12,7 @@ from typing import Any
 
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
-
-from missions.api import (
+from botstage.missions.api import (
     Condition,
     Fallback,
     ForceFailure,
@@ -40,13 +38,15 @@ from missions.api import (
     While,
     key,
 )
-from missions.check import check
-from missions.examples import hello_api
-from missions.loader import load
-from missions.runner import MissionInvalid
-from skills.base import In, Outcome
-from skills.base import Skill as SkillBase
-from skills.registry import Registry
+from botstage.missions.check import check
+from botstage.missions.examples import hello_api
+from botstage.missions.loader import load
+from botstage.missions.runner import MissionInvalid
+from botstage.skills.base import In, Outcome
+from botstage.skills.base import Skill as SkillBase
+from botstage.skills.registry import Registry
+from hypothesis import HealthCheck, given, settings
+
 from tests.test_mission_fuzz import mutated
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -361,14 +361,14 @@ def test_plugin_skills_take_the_general_form() -> None:
 
 
 def test_from_python_finds_a_modules_mission() -> None:
-    by_module = Mission.from_python("missions.examples.hello_api")
+    by_module = Mission.from_python("botstage.missions.examples.hello_api")
     by_file = Mission.from_python(ROOT / "missions/examples/hello_api.py")
     assert by_module.to_dict() == by_file.to_dict() == hello_api.build().to_dict()
 
 
 def test_the_example_module_runs(tmp_path: Path) -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "missions.examples.hello_api", "--out", str(tmp_path / "run")],
+        [sys.executable, "-m", "botstage.missions.examples.hello_api", "--out", str(tmp_path / "run")],
         capture_output=True,
         text=True,
         cwd=ROOT,

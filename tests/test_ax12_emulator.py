@@ -15,8 +15,7 @@ from pathlib import Path
 
 import pytest
 import serial
-
-from robots.drivers.dynamixel_servo import (
+from botstage.robots.drivers.dynamixel_servo import (
     ACTION,
     ADDR_CCW_LIMIT,
     ADDR_CW_LIMIT,
@@ -41,7 +40,15 @@ from robots.drivers.dynamixel_servo import (
     WRITE,
     checksum,
 )
-from robots.emulators.ax12 import DEFAULT_TABLE, MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, Ax12Emulator, status_packet
+from botstage.robots.emulators.ax12 import (
+    DEFAULT_TABLE,
+    MAX_DROP,
+    MAX_GARBAGE,
+    MAX_UNPLUG_S,
+    Ax12Emulator,
+    status_packet,
+)
+
 from tests.launchpad_helpers import FAILSAFE_S, wait_until
 
 ANGLE, RANGE, CHECKSUM, INSTRUCTION = 0x02, 0x08, 0x10, 0x40

@@ -6,18 +6,17 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from botstage.missions.runner import RunError, run
+from botstage.robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest
+from botstage.robots.backend_options import OptionSources, parse_assignments, resolve
+from botstage.robots.backend_registry import BackendRegistry
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import PROFILES_DIR, load_profile
+from botstage.robots.sim.backend import SimBackend, map_path
+from botstage.robots.sim.kind import SimKind
 from pydantic import Field
-
-from missions.runner import RunError, run
-from robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest
-from robots.backend_options import OptionSources, parse_assignments, resolve
-from robots.backend_registry import BackendRegistry
-from robots.clock import SimClock
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.profile import PROFILES_DIR, load_profile
-from robots.sim.backend import SimBackend, map_path
-from robots.sim.kind import SimKind
 
 ROOT = Path(__file__).resolve().parent.parent
 DRIVE_DEMO = ROOT / "missions" / "drive_demo.yaml"
@@ -176,8 +175,8 @@ def test_a_profile_section_for_a_backend_not_installed_is_refused_where_it_is(tm
 
 
 def test_an_observer_or_service_that_cannot_be_made_is_an_error_not_a_traceback(tmp_path: Path) -> None:
-    from missions.session import RunSession
-    from missions.session.plugins import PluginError, PluginRegistry
+    from botstage.missions.session import RunSession
+    from botstage.missions.session.plugins import PluginError, PluginRegistry
 
     class Broken:
         def __init__(self) -> None:
@@ -240,9 +239,8 @@ def test_a_backend_that_cannot_open_is_a_run_error(tmp_path: Path) -> None:
 
 
 def test_the_command_line_names_bad_options_and_lists_the_backends(tmp_path: Path) -> None:
+    from botstage.missions.cli import app
     from typer.testing import CliRunner
-
-    from missions.cli import app
 
     runner = CliRunner()
     run_hardware = ["run", str(DRIVE_DEMO), "-q", "--backend", "hardware", "--out", str(tmp_path / "run")]
@@ -262,7 +260,7 @@ def test_the_command_line_names_bad_options_and_lists_the_backends(tmp_path: Pat
     assert ": error: backend 'hardware' option 'ready_timeout': 'soon' from the robot profile: " in located.output
     assert not (tmp_path / "run").exists() and not (tmp_path / "x").exists()
 
-    from missions.cli.common import console
+    from botstage.missions.cli.common import console
 
     width = console.width  # set when the CLI was first imported, from that process's terminal
     console.width = 300  # a table wide enough that no cell wraps
@@ -276,7 +274,7 @@ def test_the_command_line_names_bad_options_and_lists_the_backends(tmp_path: Pat
 
 
 def test_the_emulator_opens_through_the_registry_with_its_options_and_faults() -> None:
-    from robots.clock import WallClock
+    from botstage.robots.clock import WallClock
 
     profile, _, _ = load_profile(PROFILES_DIR / "chefbot.yaml")
     assert profile is not None

@@ -12,7 +12,7 @@ BENCHES = ["facetracker_detection", "facetracker_walk", "facetracker_recentre"]
 
 
 def test_the_bench_reports_every_figure() -> None:
-    command = [sys.executable, "-m", "missions.cli", "bench", "facetracker", "--quick"]
+    command = [sys.executable, "-m", "botstage.missions.cli", "bench", "facetracker", "--quick"]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=900, check=False)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     rows = {

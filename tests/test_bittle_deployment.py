@@ -34,22 +34,22 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from botstage.missions.cli.distributed import free_port, process_commands
+from botstage.missions.deployment import OPERATOR, check_deployment
+from botstage.missions.distributed.operator import Operator
+from botstage.missions.distributed.supervisor import Supervisor
+from botstage.missions.places import robot_place
+from botstage.missions.runner import run
+from botstage.missions.teleop import Teleop, open_served, run_teleop
+from botstage.robots.clock import SimClock, WallClock
+from botstage.robots.interfaces import OdometryReading, Twist2D
+from botstage.robots.ros2 import readings
+from botstage.robots.ros2.certs import Credentials, make_certificates
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.security import security_options
+from botstage.robots.ros2.topics import routes
+from botstage.robots.sim.backend import SimBackend
 
-from missions.cli.distributed import free_port, process_commands
-from missions.deployment import OPERATOR, check_deployment
-from missions.distributed.operator import Operator
-from missions.distributed.supervisor import Supervisor
-from missions.places import robot_place
-from missions.runner import run
-from missions.teleop import Teleop, open_served, run_teleop
-from robots.clock import SimClock, WallClock
-from robots.interfaces import OdometryReading, Twist2D
-from robots.ros2 import readings
-from robots.ros2.certs import Credentials, make_certificates
-from robots.ros2.node import Ros2Node
-from robots.ros2.security import security_options
-from robots.ros2.topics import routes
-from robots.sim.backend import SimBackend
 from tests.test_ros2_interop import listening_node
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -181,7 +181,7 @@ def test_topics_without_a_backend_are_a_located_error(tmp_path: Path) -> None:
 
 def test_botstage_up_runs_the_patrol_as_one_process_does_and_refuses_cmd_vel_meanwhile(tmp_path: Path) -> None:
     port, lines = free_port(), Lines()
-    command = [sys.executable, "-m", "missions.cli", "up", str(DEPLOYMENT), "--port", str(port)]
+    command = [sys.executable, "-m", "botstage.missions.cli", "up", str(DEPLOYMENT), "--port", str(port)]
     command += ["--seed", str(SEED), "--until", str(UNTIL), "--out", str(tmp_path / "two")]
     up = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
@@ -315,7 +315,7 @@ def test_a_killed_teleop_leaves_the_walking_bittle_to_the_robot_s_watchdog(
     assert watcher.wait_for(lambda: bool(watcher.odometry)), "no odometry from the Pi"
     start = watcher.latest()
     assert start is not None
-    command = [sys.executable, "-m", "missions.cli", "teleop", "bittle", "--connect", pi.endpoint]
+    command = [sys.executable, "-m", "botstage.missions.cli", "teleop", "bittle", "--connect", pi.endpoint]
     with keys.open() as stdin:
         teleop = subprocess.Popen(command, cwd=ROOT, stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:

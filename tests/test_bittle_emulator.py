@@ -15,15 +15,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from botstage.robots.clock import WallClock
+from botstage.robots.drivers.bittle_base import BittleBase
+from botstage.robots.emulators.backend import EmulatorBackend
+from botstage.robots.emulators.nyboard import NyBoardEmulator
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, load_profile, profile_path
+from botstage.robots.sim.backend import map_path
 
-from robots.clock import WallClock
-from robots.drivers.bittle_base import BittleBase
-from robots.emulators.backend import EmulatorBackend
-from robots.emulators.nyboard import NyBoardEmulator
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.profile import Profile, load_profile, profile_path
-from robots.sim.backend import map_path
 from tests.launchpad_helpers import wait_until
 
 OPEN_FLOOR = Pose2D(10.0, 7.0, 0.0)
@@ -117,7 +117,7 @@ def test_the_patrol_mission_runs_over_the_emulator(tmp_path: Path) -> None:
     """`botstage run missions/bittle_patrol.yaml --backend emulator`: the mission's walk reaches the
     board as gait tokens and the simulated body walks (a few seconds of it, in real time)."""
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "missions.cli", "run", str(ROOT / "missions" / "bittle_patrol.yaml")]
+    command = [sys.executable, "-m", "botstage.missions.cli", "run", str(ROOT / "missions" / "bittle_patrol.yaml")]
     command += ["--backend", "emulator", "--until", "6", "--out", str(out)]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]

@@ -1,8 +1,7 @@
 import pytest
-
-from behaviors.blackboard import AccessError, Blackboard, BlackboardError, KeyTypeError, MissingKeyError
-from behaviors.trace import Trace
-from robots.clock import SimClock
+from botstage.behaviors.blackboard import AccessError, Blackboard, BlackboardError, KeyTypeError, MissingKeyError
+from botstage.behaviors.trace import Trace
+from botstage.robots.clock import SimClock
 
 
 @pytest.fixture

@@ -10,12 +10,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from behaviors.btcpp.export import ExportError, export_loaded, export_mission, normal_form
-from behaviors.btcpp.to_spec import loads_xml
-from missions.check import check
-from missions.loader import load
-from missions.runner import run
+from botstage.behaviors.btcpp.export import ExportError, export_loaded, export_mission, normal_form
+from botstage.behaviors.btcpp.to_spec import loads_xml
+from botstage.missions.check import check
+from botstage.missions.loader import load
+from botstage.missions.runner import run
 
 MISSIONS = Path(__file__).resolve().parent.parent / "missions"
 SHIPPED = sorted(p for p in [*MISSIONS.glob("*.yaml"), *(MISSIONS / "examples").glob("*.yaml")])

@@ -8,12 +8,11 @@ from typing import Any
 
 import pytest
 import yaml
+from botstage.behaviors.btcpp.to_spec import load_xml, loads_xml
+from botstage.missions.check import check
+from botstage.missions.cli import app
+from botstage.missions.runner import run
 from typer.testing import CliRunner
-
-from behaviors.btcpp.to_spec import load_xml, loads_xml
-from missions.check import check
-from missions.cli import app
-from missions.runner import run
 
 NAV2 = Path(__file__).resolve().parents[2] / "shared" / "nav2"
 

@@ -7,8 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-
-from behaviors.btcpp.script import ScriptError, ScriptRuntimeError, compile_script
+from botstage.behaviors.btcpp.script import ScriptError, ScriptRuntimeError, compile_script
 
 
 class Vars(dict):

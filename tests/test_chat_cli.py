@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from botstage.missions.cli import app
 from typer.testing import CliRunner
 
-from missions.cli import app
 from tests.test_converse import brain_cache, isolated_cache  # noqa: F401 (fixtures: the test cache)
 
 runner = CliRunner()
@@ -101,7 +101,7 @@ def test_a_missing_aiml_file_is_reported(tmp_path: Path) -> None:
 
 
 def test_no_aiml_at_all_is_an_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("skills.chat.persona.MAYA_DIR", tmp_path)  # Maya's own AIML gone too
+    monkeypatch.setattr("botstage.skills.chat.persona.MAYA_DIR", tmp_path)  # Maya's own AIML gone too
     out, err, code = chat("--no-alice", "--cache-dir", str(tmp_path / "cache"), lines=["hello"])
     assert (code, out) == (2, [])
     assert "error: no AIML category was learnt" in err

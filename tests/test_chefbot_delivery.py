@@ -16,12 +16,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from botstage.behaviors.engine import Engine
+from botstage.missions.cli import app
+from botstage.missions.runner import RunResult, run
+from botstage.robots.gridmap import load
 from typer.testing import CliRunner
-
-from behaviors.engine import Engine
-from missions.cli import app
-from missions.runner import RunResult, run
-from robots.gridmap import load
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions/chefbot_delivery.yaml"
@@ -95,7 +94,7 @@ def test_orders_from_the_command_line_join_the_queue_in_arrival_order(tmp_path: 
         now = engine.clock.now()
         if "first" not in said and now >= 50.0:
             said["first"] = subprocess.run(
-                [sys.executable, "-m", "missions.cli", "order", "table_5", "ice cream", "--run", str(folder)],
+                [sys.executable, "-m", "botstage.missions.cli", "order", "table_5", "ice cream", "--run", str(folder)],
                 cwd=ROOT,
                 capture_output=True,
                 text=True,
@@ -138,7 +137,7 @@ def test_over_the_emulated_board_the_mission_survives_an_unplug(
     for 1.5 s: the driver reports the loss, navigate drives on when the link is back (the tree
     has it wait), the driver's first command on the new link is zero speed, and the order is
     delivered and the robot docks."""
-    from robots.emulators import backend as emulator_backend
+    from botstage.robots.emulators import backend as emulator_backend
 
     made: list[Any] = []
     real_init = emulator_backend.EmulatorBackend.__init__

@@ -15,14 +15,13 @@ import time
 from pathlib import Path
 
 import pytest
-
-from missions.fault_console import apply_fault
-from missions.places import robot_place
-from missions.scenario import load_scenario
-from missions.scenario_suite import run_in_folder
-from missions.session.result import exit_status
-from robots.emulators.launchpad import MAX_GARBAGE, LaunchpadEmulator
-from robots.sim.world import World
+from botstage.missions.fault_console import apply_fault
+from botstage.missions.places import robot_place
+from botstage.missions.scenario import load_scenario
+from botstage.missions.scenario_suite import run_in_folder
+from botstage.missions.session.result import exit_status
+from botstage.robots.emulators.launchpad import MAX_GARBAGE, LaunchpadEmulator
+from botstage.robots.sim.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
 HELLO = str(ROOT / "missions" / "hello.yaml")
@@ -32,7 +31,7 @@ FAILSAFE_S = 120.0  # a bound for a process that should have ended long before; 
 def botstage(*args: str, cwd: Path | None = None, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
     """The console script in a subprocess; wide columns, so that typer's error box never wraps."""
     environment = {**os.environ, "COLUMNS": "300", **(env or {})}
-    command = [sys.executable, "-m", "missions.cli", *args]
+    command = [sys.executable, "-m", "botstage.missions.cli", *args]
     return subprocess.run(
         command,
         capture_output=True,
@@ -213,7 +212,7 @@ def test_an_interrupted_run_exits_130(tmp_path: Path) -> None:
     mission.write_text("name: long\ntrees:\n  main: {wait: {duration: 1000}}\n")
     out = tmp_path / "run"
     process = subprocess.Popen(
-        [sys.executable, "-m", "missions.cli", "run", str(mission), "-q", "--realtime", "--out", str(out)],
+        [sys.executable, "-m", "botstage.missions.cli", "run", str(mission), "-q", "--realtime", "--out", str(out)],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -293,7 +292,7 @@ def test_the_emulator_itself_refuses_unbounded_faults(emulator: LaunchpadEmulato
             fault(value)
 
 
-EMULATE = [sys.executable, "-m", "missions.cli", "emulate", "launchpad", "--start", "10,7,0"]
+EMULATE = [sys.executable, "-m", "botstage.missions.cli", "emulate", "launchpad", "--start", "10,7,0"]
 
 
 def emulator_console(command: list[str]) -> subprocess.Popen[str]:

@@ -1,8 +1,7 @@
 import time
 
 import pytest
-
-from robots.clock import SimClock, WallClock
+from botstage.robots.clock import SimClock, WallClock
 
 
 def test_sim_clock_moves_only_when_stepped() -> None:

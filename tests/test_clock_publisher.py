@@ -7,11 +7,12 @@ import threading
 import time
 from pathlib import Path
 
-from missions.distributed.clock import CLOCK_TOPIC, CLOCK_TYPE, ClockPublisher
-from missions.runner import run
-from robots.ros2.liveliness import EntityKind
-from robots.ros2.node import Ros2Node
-from robots.ros2.readings import seconds_of
+from botstage.missions.distributed.clock import CLOCK_TOPIC, CLOCK_TYPE, ClockPublisher
+from botstage.missions.runner import run
+from botstage.robots.ros2.liveliness import EntityKind
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.readings import seconds_of
+
 from tests.test_ros2_interop import listening_node
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -6,14 +6,13 @@ import itertools
 import math
 
 import pytest
-
-from robots.gridmap import load
-from robots.interfaces import LaserScan, Pose2D
-from robots.profile import load_profile
-from robots.sim.world import World
-from skills.nav.controller import FollowerParams, PathFollower
-from skills.nav.costmap import inflated_costs
-from skills.nav.planner import Planner
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import LaserScan, Pose2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.world import World
+from botstage.skills.nav.controller import FollowerParams, PathFollower
+from botstage.skills.nav.costmap import inflated_costs
+from botstage.skills.nav.planner import Planner
 
 DT = 0.05
 MUSEUM = load("robots/maps/museum.yaml")

@@ -13,20 +13,19 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from robots.clock import SimClock
-from skills.base import Outcome, Skill, SkillContext, SkillLogger
-from skills.chat import cache
-from skills.chat.cache import KEEP, brain_dir, cache_root, fingerprint, load_brain, prune, shared_brain
-from skills.chat.chatbot import Chatbot
-from skills.chat.kernel import SIM_EPOCH, calendar
-from skills.chat.learn import learn_files
-from skills.chat.persona import ALICE_DIR, MAYA_DIR, MAYA_PREDICATES, aiml_files
-from skills.chat.routing import COMMANDS, route
-from skills.converse import Converse
-from skills.execution import SkillExecution
-from skills.testing import DictBoard as Board
-from skills.workers import Workers
+from botstage.robots.clock import SimClock
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillLogger
+from botstage.skills.chat import cache
+from botstage.skills.chat.cache import KEEP, brain_dir, cache_root, fingerprint, load_brain, prune, shared_brain
+from botstage.skills.chat.chatbot import Chatbot
+from botstage.skills.chat.kernel import SIM_EPOCH, calendar
+from botstage.skills.chat.learn import learn_files
+from botstage.skills.chat.persona import ALICE_DIR, MAYA_DIR, MAYA_PREDICATES, aiml_files
+from botstage.skills.chat.routing import COMMANDS, route
+from botstage.skills.converse import Converse
+from botstage.skills.execution import SkillExecution
+from botstage.skills.testing import DictBoard as Board
+from botstage.skills.workers import Workers
 
 AIML_HEAD = '<?xml version="1.0" encoding="UTF-8"?>\n<aiml version="1.0.1">\n'
 
@@ -633,7 +632,7 @@ def test_a_broken_aiml_file_is_logged_once_per_run(harness: Harness, tmp_path: P
 
 
 def test_no_aiml_at_all_is_a_failure_with_its_reason(harness: Harness, tmp_path: Path, monkeypatch: Any) -> None:
-    monkeypatch.setattr("skills.converse.aiml_files", lambda alice, extra: [tmp_path / "missing.aiml"])
+    monkeypatch.setattr("botstage.skills.converse.aiml_files", lambda alice, extra: [tmp_path / "missing.aiml"])
     outcome, _ = harness.run(Converse(), text="hello")
     assert outcome.name == "failure"
     assert "no AIML category was learnt" in outcome.reason and "missing.aiml" in outcome.reason

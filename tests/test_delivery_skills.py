@@ -13,21 +13,20 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from missions.services import RobotServices
-from robots.clock import SimClock
-from robots.gridmap import load
-from robots.interfaces import BatteryState, OdometryReading, Pose2D, SonarReading, Twist2D
-from robots.profile import load_profile
-from robots.sim.backend import SimBackend
-from skills.base import Outcome, Skill, SkillContext, SkillLogger
-from skills.delivery.inbox import ACCEPTS, OrderError, OrderInbox, parse_order
-from skills.execution import SkillExecution
-from skills.monitors import Odometer, WatchBattery, WatchSonar
-from skills.orders import DropOrders, FinishOrder, TakeOrder
-from skills.testing import DictBoard
-from skills.wait_for import WaitFor
-from skills.workers import Workers
+from botstage.missions.services import RobotServices
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import BatteryState, OdometryReading, Pose2D, SonarReading, Twist2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.backend import SimBackend
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillLogger
+from botstage.skills.delivery.inbox import ACCEPTS, OrderError, OrderInbox, parse_order
+from botstage.skills.execution import SkillExecution
+from botstage.skills.monitors import Odometer, WatchBattery, WatchSonar
+from botstage.skills.orders import DropOrders, FinishOrder, TakeOrder
+from botstage.skills.testing import DictBoard
+from botstage.skills.wait_for import WaitFor
+from botstage.skills.workers import Workers
 
 RESTAURANT = load("robots/maps/restaurant.yaml")
 TABLES = [f"table_{n}" for n in range(1, 7)]
@@ -334,7 +333,7 @@ def test_odometer_adds_up_the_distance_and_writes_it_when_cancelled() -> None:
 
 
 def test_post_order_checks_the_order_against_the_inbox_before_writing(tmp_path: Path) -> None:
-    from missions.orders import find_inbox, post_order
+    from botstage.missions.orders import find_inbox, post_order
 
     with pytest.raises(OrderError, match="no open order inbox"):
         find_inbox(tmp_path / "run")

@@ -5,8 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from missions.deployment import check_deployment
+from botstage.missions.deployment import check_deployment
 
 ROOT = Path(__file__).resolve().parent.parent
 FIVE = ROOT / "missions" / "deployments" / "peoplebot_five_computers.yaml"

@@ -30,10 +30,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from missions.cli.distributed import free_port, process_commands
-from missions.deployment import check_deployment
-from missions.distributed.supervisor import Supervisor
+from botstage.missions.cli.distributed import free_port, process_commands
+from botstage.missions.deployment import check_deployment
+from botstage.missions.distributed.supervisor import Supervisor
 
 ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENTS = ROOT / "tests" / "deployments"

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from missions.runner import run
+from botstage.missions.runner import run
 
 ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENT = ROOT / "missions" / "deployments" / "peoplebot_five_computers.yaml"
@@ -29,7 +29,7 @@ def test_five_processes_leave_the_one_process_trace(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "missions.cli",
+            "botstage.missions.cli",
             "up",
             str(DEPLOYMENT),
             "--seed",

@@ -25,13 +25,11 @@ from typing import Any
 import pytest
 import typer
 import zenoh
-from typer.testing import CliRunner
-
-from missions.cli.certs import certs as certs_command
-from missions.cli.distributed import free_port
-from missions.deployment import OPERATOR, check_deployment
-from missions.distributed.process import DeploymentError, serve_process
-from missions.distributed.security import (
+from botstage.missions.cli.certs import certs as certs_command
+from botstage.missions.cli.distributed import free_port
+from botstage.missions.deployment import OPERATOR, check_deployment
+from botstage.missions.distributed.process import DeploymentError, serve_process
+from botstage.missions.distributed.security import (
     SecurityError,
     command_topics,
     credentials,
@@ -39,21 +37,23 @@ from missions.distributed.security import (
     secured,
     session_options,
 )
-from missions.places import robot_place
-from robots.clock import SimClock
-from robots.interfaces import Twist2D
-from robots.ros2 import readings, types
-from robots.ros2.certs import Credentials, make_certificates
-from robots.ros2.node import Ros2Node
-from robots.ros2.robot_server import RobotServer
-from robots.ros2.security import ACCESS_CONTROL, access_control, security_options
-from robots.ros2.service import ServiceError
-from robots.ros2.topics import routes
-from robots.sim.backend import SimBackend
-from skills.registry import Registry
-from skills.remote.host import SkillHost
-from skills.remote.protocol import Call, Step, TickRequest, request_fields
-from skills.remote.ros2_link import SERVICE_TYPE, SkillTickLink, serve_skill_host, service_name
+from botstage.missions.places import robot_place
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import Twist2D
+from botstage.robots.ros2 import readings, types
+from botstage.robots.ros2.certs import Credentials, make_certificates
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.robot_server import RobotServer
+from botstage.robots.ros2.security import ACCESS_CONTROL, access_control, security_options
+from botstage.robots.ros2.service import ServiceError
+from botstage.robots.ros2.topics import routes
+from botstage.robots.sim.backend import SimBackend
+from botstage.skills.registry import Registry
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import Call, Step, TickRequest, request_fields
+from botstage.skills.remote.ros2_link import SERVICE_TYPE, SkillTickLink, serve_skill_host, service_name
+from typer.testing import CliRunner
+
 from tests.test_ros2_security import _ingress_only, wait_matching
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -171,7 +171,18 @@ def test_serve_process_refuses_a_tcp_endpoint_when_secured(tmp_path: Path) -> No
 
 
 def _up(deployment: Path, out: Path, *extra: str) -> dict[str, Any]:
-    command = [sys.executable, "-m", "missions.cli", "up", str(deployment), "--out", str(out), "--until", "5", *extra]
+    command = [
+        sys.executable,
+        "-m",
+        "botstage.missions.cli",
+        "up",
+        str(deployment),
+        "--out",
+        str(out),
+        "--until",
+        "5",
+        *extra,
+    ]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=FAILSAFE_S)
     assert done.returncode == 0, done.stdout + done.stderr
     return {"stdout": done.stdout, "summary": json.loads((out / "summary.json").read_text())}

@@ -7,15 +7,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
-from missions.bench.navsim import NavSim
-from robots.interfaces import Pose2D
-from robots.profile import Profile, load_profile
-from skills.detect_crowd import DetectCrowd
-from skills.perception.camera_people import CASCADE, faces_to_people
-from skills.perception.crowd import CrowdTracker, group
-from skills.perception.people_tracking import map_to_sensor, sensor_to_map
-from skills.perception.tracking import PeopleTracks
+from botstage.missions.bench.navsim import NavSim
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, load_profile
+from botstage.skills.detect_crowd import DetectCrowd
+from botstage.skills.perception.camera_people import CASCADE, faces_to_people
+from botstage.skills.perception.crowd import CrowdTracker, group
+from botstage.skills.perception.people_tracking import map_to_sensor, sensor_to_map
+from botstage.skills.perception.tracking import PeopleTracks
 
 
 def place(sim: NavSim, spots: list[tuple[float, float]]) -> None:

@@ -327,7 +327,7 @@ def test_drill(drill: Drill, tmp_path: Path) -> None:
         drill.setup(tmp_path)
     env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "200", "BOTSTAGE_CACHE_DIR": str(tmp_path / "cache")}
     done = subprocess.run(
-        [sys.executable, "-m", "missions.cli", *drill.args],
+        [sys.executable, "-m", "botstage.missions.cli", *drill.args],
         cwd=tmp_path,
         capture_output=True,
         text=True,

@@ -13,8 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-
-from robots.drivers.dynamixel_servo import (
+from botstage.robots.drivers.dynamixel_servo import (
     ADDR_CCW_LIMIT,
     ADDR_CW_LIMIT,
     ADDR_SPEED,
@@ -29,7 +28,8 @@ from robots.drivers.dynamixel_servo import (
     raw_to_angle,
     speed_to_raw,
 )
-from robots.emulators.ax12 import Ax12Emulator
+from botstage.robots.emulators.ax12 import Ax12Emulator
+
 from tests.launchpad_helpers import wait_until
 
 LATENCY_MS = 50.0  # the SDK's packet timeout becomes about 100 ms

@@ -1,6 +1,5 @@
 import pytest
-
-from skills.expression import EvaluationError, ExpressionError, compile_expression
+from botstage.skills.expression import EvaluationError, ExpressionError, compile_expression
 
 VALUES = {"battery_pct": 15, "estop": False, "robot/mode": "docking", "people": [1, 2, 3], "name": "bot"}
 

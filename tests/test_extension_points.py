@@ -91,7 +91,7 @@ def kit(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 
 
 def botstage(env: dict[str, str], cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    command = [sys.executable, "-m", "missions.cli", *args]
+    command = [sys.executable, "-m", "botstage.missions.cli", *args]
     return subprocess.run(command, capture_output=True, text=True, env=env, cwd=cwd, timeout=300)
 
 
@@ -173,8 +173,8 @@ def test_run_opens_the_plugin_backend_and_the_observer_sees_every_event(kit, mis
 def test_the_round_robin_starts_after_the_child_that_ran_last(kit, missions: Path) -> None:
     """The composite's semantics, ticked by the engine (Nav2's RoundRobin)."""
     code = """
-from behaviors.engine import Engine
-from robots.clock import SimClock
+from botstage.behaviors.engine import Engine
+from botstage.robots.clock import SimClock
 engine = Engine(clock=SimClock(10))
 engine.blackboard.set("x", 0, writer="test")
 spec = {"round_robin": [{"condition": "x == 1"}, {"condition": "x == 2"}, {"condition": "x == 3"}]}

@@ -17,7 +17,7 @@ def test_the_mission_runs_over_the_emulated_servo(tmp_path: Path) -> None:
     """`botstage run missions/face_tracker.yaml --backend emulator`: in real time, a few seconds of
     it; the tracker sweeps for the visitor (no face in its first second) through the driver."""
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "missions.cli", "run", str(ROOT / "missions" / "face_tracker.yaml")]
+    command = [sys.executable, "-m", "botstage.missions.cli", "run", str(ROOT / "missions" / "face_tracker.yaml")]
     command += ["--backend", "emulator", "--until", "4", "--out", str(out)]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=180, check=False)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]

@@ -18,28 +18,28 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from botstage.missions.check import check
+from botstage.missions.runner import run
+from botstage.robots.backend import OpenRequest, ScriptedWalk
+from botstage.robots.backend_options import OptionSources
+from botstage.robots.backend_registry import BackendError, BackendRegistry
+from botstage.robots.clock import SimClock
+from botstage.robots.drivers.dynamixel_servo import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, speed_to_raw
+from botstage.robots.emulators.ax12 import Ax12Emulator
+from botstage.robots.emulators.pan_head import PanHeadEmulatorBackend
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import Camera, Pan, Pose2D, check_interfaces
+from botstage.robots.profile import Profile, load_profile
+from botstage.robots.ros2 import readings, types
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.proxies import ClockRef, Latest, PanProxy
+from botstage.robots.ros2.robot_server import RobotServer
+from botstage.robots.ros2.topics import routes
+from botstage.robots.sim.backend import SimBackend
+from botstage.robots.sim.devices import SimPan
+from botstage.robots.sim.people import Person
+from botstage.skills.perception.face_tracking import FaceDetector
 
-from missions.check import check
-from missions.runner import run
-from robots.backend import OpenRequest, ScriptedWalk
-from robots.backend_options import OptionSources
-from robots.backend_registry import BackendError, BackendRegistry
-from robots.clock import SimClock
-from robots.drivers.dynamixel_servo import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, speed_to_raw
-from robots.emulators.ax12 import Ax12Emulator
-from robots.emulators.pan_head import PanHeadEmulatorBackend
-from robots.gridmap import load
-from robots.interfaces import Camera, Pan, Pose2D, check_interfaces
-from robots.profile import Profile, load_profile
-from robots.ros2 import readings, types
-from robots.ros2.node import Ros2Node
-from robots.ros2.proxies import ClockRef, Latest, PanProxy
-from robots.ros2.robot_server import RobotServer
-from robots.ros2.topics import routes
-from robots.sim.backend import SimBackend
-from robots.sim.devices import SimPan
-from robots.sim.people import Person
-from skills.perception.face_tracking import FaceDetector
 from tests.launchpad_helpers import wait_until
 
 PROFILE = Path("robots/profiles/face_tracker.yaml")
@@ -499,7 +499,7 @@ def test_the_emulator_backend_is_what_a_run_opens_for_the_tracker(tmp_path: Path
 
 
 def test_the_hardware_backend_drives_the_servo_and_reads_the_webcam(tmp_path: Path) -> None:
-    from robots.drivers.video_camera import wait_for_frame
+    from botstage.robots.drivers.video_camera import wait_for_frame
 
     video = tmp_path / "webcam.avi"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480))

@@ -6,12 +6,11 @@ import math
 from types import SimpleNamespace
 
 import pytest
-
-from missions.places import robot_place
-from robots.profile import Device
-from robots.sim.camera import CameraView
-from robots.sim.world import World
-from skills.perception.face_tracking import FaceDetector, PanController
+from botstage.missions.places import robot_place
+from botstage.robots.profile import Device
+from botstage.robots.sim.camera import CameraView
+from botstage.robots.sim.world import World
+from botstage.skills.perception.face_tracking import FaceDetector, PanController
 
 
 @pytest.mark.parametrize(

@@ -6,12 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from botstage.robots import PROFILES_DIR
+from botstage.robots.gaits import Direction, GaitOdometry, Gaits, choose, motion_of
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
 from pydantic import ValidationError
-
-from robots import PROFILES_DIR
-from robots.gaits import Direction, GaitOdometry, Gaits, choose, motion_of
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
 
 
 @pytest.fixture(scope="module")

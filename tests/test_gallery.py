@@ -16,9 +16,9 @@ import cv2
 import httpx
 import numpy as np
 import pytest
+from botstage.missions.gallery.server import RunningGallery, start_gallery
+from botstage.missions.serving import bind, is_loopback
 
-from missions.gallery.server import RunningGallery, start_gallery
-from missions.serving import bind, is_loopback
 from tests.test_outbox import TOKEN, make_photo, photos_in, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -211,7 +211,16 @@ def test_botstage_gallery_serves_on_loopback_until_stopped(tmp_path, jpeg) -> No
     port = probe.getsockname()[1]
     probe.close()
     env = {**os.environ, "BOTSTAGE_GALLERY_TOKEN": TOKEN}
-    command = [sys.executable, "-m", "missions.cli", "gallery", "--port", str(port), "--dir", str(tmp_path / "g")]
+    command = [
+        sys.executable,
+        "-m",
+        "botstage.missions.cli",
+        "gallery",
+        "--port",
+        str(port),
+        "--dir",
+        str(tmp_path / "g"),
+    ]
     process = subprocess.Popen(command, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     url = f"http://127.0.0.1:{port}"
     try:
@@ -240,7 +249,16 @@ def test_botstage_gallery_says_when_the_port_is_taken(tmp_path) -> None:
     try:
         port = taken.getsockname()[1]
         result = subprocess.run(
-            [sys.executable, "-m", "missions.cli", "gallery", "--port", str(port), "--dir", str(tmp_path / "g")],
+            [
+                sys.executable,
+                "-m",
+                "botstage.missions.cli",
+                "gallery",
+                "--port",
+                str(port),
+                "--dir",
+                str(tmp_path / "g"),
+            ],
             cwd=ROOT,
             capture_output=True,
             text=True,
@@ -284,7 +302,7 @@ def png_of(width: int, height: int, rows_per_block: int = 250) -> bytes:
 
 
 def test_an_image_of_too_many_pixels_is_refused_from_its_header_before_decoding(gallery, monkeypatch) -> None:
-    from missions.gallery import images
+    from botstage.missions.gallery import images
 
     bomb = png_of(8000, 8000)  # 64 MP in a small file
     assert len(bomb) < 1_000_000
@@ -356,7 +374,7 @@ def test_metadata_is_bounded_and_refused_with_a_reason(gallery, jpeg, metadata, 
 
 
 def test_botstage_gallery_on_port_0_serves_on_a_free_port_it_prints(tmp_path) -> None:
-    command = [sys.executable, "-m", "missions.cli", "gallery", "--port", "0", "--dir", str(tmp_path / "g")]
+    command = [sys.executable, "-m", "botstage.missions.cli", "gallery", "--port", "0", "--dir", str(tmp_path / "g")]
     process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert process.stderr is not None
@@ -374,7 +392,7 @@ def test_botstage_gallery_refuses_a_folder_it_cannot_keep_photos_in(tmp_path) ->
     index_is_a_folder = tmp_path / "g"
     (index_is_a_folder / "gallery.sqlite").mkdir(parents=True)
     result = subprocess.run(
-        [sys.executable, "-m", "missions.cli", "gallery", "--port", "0", "--dir", str(index_is_a_folder)],
+        [sys.executable, "-m", "botstage.missions.cli", "gallery", "--port", "0", "--dir", str(index_is_a_folder)],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -8,14 +8,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from botstage.missions.places import robot_place
+from botstage.missions.teleop import drive_loop
+from botstage.robots.clock import SimClock
+from botstage.robots.drivers.rosserial import RosserialDriver
+from botstage.robots.emulators.imu_arduino import HandScript, ImuArduino
+from botstage.robots.sim.backend import SimBackend
+from botstage.skills.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
 
-from missions.places import robot_place
-from missions.teleop import drive_loop
-from robots.clock import SimClock
-from robots.drivers.rosserial import RosserialDriver
-from robots.emulators.imu_arduino import HandScript, ImuArduino
-from robots.sim.backend import SimBackend
-from skills.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
 from tests.launchpad_helpers import wait_until
 
 

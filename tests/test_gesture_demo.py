@@ -19,8 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from missions.runner import run
+from botstage.missions.runner import run
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "missions" / "gesture_demo.yaml"
@@ -59,8 +58,8 @@ def motions(folder: Path) -> list[str]:
 def test_the_gesture_demo_over_the_emulators_drives_chefbot_as_on_the_simulator(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from robots.emulators import backend as emulator_backend
-    from robots.emulators import imu_arduino
+    from botstage.robots.emulators import backend as emulator_backend
+    from botstage.robots.emulators import imu_arduino
 
     made: dict[str, list[Any]] = {"board": [], "glove": []}
 

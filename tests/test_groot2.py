@@ -21,15 +21,14 @@ from typing import Any
 
 import pytest
 import zmq
-
-from behaviors.engine import Engine
-from behaviors.trace import read_jsonl
-from missions.check import build_root, check, root_spec_path
-from missions.groot2.btlog import BtlogError, read_btlog, write_btlog
-from missions.groot2.publisher import Groot2Publisher
-from missions.groot2.tree import GrootTree
-from missions.runner import run
-from robots.clock import SimClock
+from botstage.behaviors.engine import Engine
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.check import build_root, check, root_spec_path
+from botstage.missions.groot2.btlog import BtlogError, read_btlog, write_btlog
+from botstage.missions.groot2.publisher import Groot2Publisher
+from botstage.missions.groot2.tree import GrootTree
+from botstage.missions.runner import run
+from botstage.robots.clock import SimClock
 
 WAIT_MS = 15_000
 MISSION = """\
@@ -375,7 +374,16 @@ def test_run_groot2_from_the_command_line(tmp_path: Path) -> None:
     port = probe.port
     probe.close()
     env = {**os.environ, "COLUMNS": "200"}
-    command = [sys.executable, "-m", "missions.cli", "run", str(mission), "--groot2", "--groot2-port", str(port)]
+    command = [
+        sys.executable,
+        "-m",
+        "botstage.missions.cli",
+        "run",
+        str(mission),
+        "--groot2",
+        "--groot2-port",
+        str(port),
+    ]
     command += ["--realtime", "--quiet", "--out", str(tmp_path / "run")]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     client = Client(port)

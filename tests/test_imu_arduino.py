@@ -18,11 +18,10 @@ from typing import Any
 
 import pytest
 import serial
-
-from robots.drivers import rosserial_protocol as rp
-from robots.drivers.rosserial import RosserialDriver
-from robots.drivers.rosserial_protocol import Packet, PacketDecoder, encode_packet
-from robots.emulators.imu_arduino import (
+from botstage.robots.drivers import rosserial_protocol as rp
+from botstage.robots.drivers.rosserial import RosserialDriver
+from botstage.robots.drivers.rosserial_protocol import Packet, PacketDecoder, encode_packet
+from botstage.robots.emulators.imu_arduino import (
     DEFAULT_KEYFRAMES,
     MAX_DROP,
     PUBLISH_HZ,
@@ -31,6 +30,7 @@ from robots.emulators.imu_arduino import (
     as_published,
     dmp_quaternion,
 )
+
 from tests.launchpad_helpers import FAILSAFE_S, wait_until
 
 HOST_TIME = 1_700_000_123.25
@@ -299,7 +299,7 @@ def test_in_real_time_the_values_lie_on_the_scripts_path(tmp_path: Path) -> None
 
 
 def test_line_faults_are_survived_and_counted(board: ImuArduino, caplog: pytest.LogCaptureFixture) -> None:
-    caplog.set_level(logging.INFO, logger="robots.drivers.rosserial.device")
+    caplog.set_level(logging.INFO, logger="botstage.robots.drivers.rosserial.device")
     with open_driver(board) as driver:
         received = Received(driver)
         assert driver.wait_until(lambda: len(received.values) >= 10, FAILSAFE_S)

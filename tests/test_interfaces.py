@@ -2,8 +2,7 @@ import math
 
 import numpy as np
 import pytest
-
-from robots.interfaces import (
+from botstage.robots.interfaces import (
     BatteryState,
     CameraInfo,
     LaserScan,

@@ -20,15 +20,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from botstage.missions.runner import RunError, run
+from botstage.robots.clock import WallClock
+from botstage.robots.drivers.launchpad_protocol import LineDecoder
+from botstage.robots.emulators.backend import EmulatorBackend
+from botstage.robots.emulators.launchpad import LaunchpadEmulator
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D, check_interfaces
+from botstage.robots.sim.backend import map_path, populated_world
 
-from missions.runner import RunError, run
-from robots.clock import WallClock
-from robots.drivers.launchpad_protocol import LineDecoder
-from robots.emulators.backend import EmulatorBackend
-from robots.emulators.launchpad import LaunchpadEmulator
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D, check_interfaces
-from robots.sim.backend import map_path, populated_world
 from tests.launchpad_helpers import FAILSAFE_S, Delivered, chefbot, wait_until
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -263,7 +263,7 @@ def test_botstage_emulate_launchpad_prints_its_path_and_runs_until_interrupted()
     import serial
 
     process = subprocess.Popen(
-        [sys.executable, "-m", "missions.cli", "emulate", "launchpad", "--start", "10,7,0"],
+        [sys.executable, "-m", "botstage.missions.cli", "emulate", "launchpad", "--start", "10,7,0"],
         cwd=ROOT,
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,

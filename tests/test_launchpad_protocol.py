@@ -6,8 +6,7 @@ import math
 import random
 
 import pytest
-
-from robots.drivers.launchpad_protocol import (
+from botstage.robots.drivers.launchpad_protocol import (
     BadLine,
     BatteryVolts,
     BoardTime,

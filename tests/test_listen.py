@@ -12,19 +12,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from robots.clock import SimClock
-from robots.gridmap import load
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
-from robots.sim.backend import SimBackend
-from skills.base import Outcome, SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.listen import Listen
-from skills.registry import Registry
-from skills.speech.wav import read_wav
-from skills.testing import DictBoard
-from skills.workers import Workers
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.backend import SimBackend
+from botstage.skills.base import Outcome, SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.listen import Listen
+from botstage.skills.registry import Registry
+from botstage.skills.speech.wav import read_wav
+from botstage.skills.testing import DictBoard
+from botstage.skills.workers import Workers
 
 DATA = Path(__file__).parent / "data" / "speech"
 MUSEUM = load("robots/maps/museum.yaml")

@@ -19,12 +19,11 @@ import textwrap
 from pathlib import Path
 
 import pytest
-
-from missions.check import INTERNAL, check
-from missions.loader import load
-from robots import limits
-from robots.located_yaml import load_document
-from skills.expression import EvaluationError, ExpressionError, compile_expression
+from botstage.missions.check import INTERNAL, check
+from botstage.missions.loader import load
+from botstage.robots import limits
+from botstage.robots.located_yaml import load_document
+from botstage.skills.expression import EvaluationError, ExpressionError, compile_expression
 
 MEMORY_CAP = 1536 * 1024 * 1024
 WAIT = "trees:\n  main: {wait: {duration: 1}}\n"
@@ -47,7 +46,7 @@ def messages(path: Path, **options: object) -> list[str]:
 
 CHILD = """
 import json, sys
-from missions.check import check
+from botstage.missions.check import check
 print(json.dumps({f: [[p.location.file, p.location.line, p.location.col, p.message] for p in check(f).problems]
                   for f in sys.argv[1:]}))
 """

@@ -12,16 +12,15 @@ import math
 
 import numpy as np
 import pytest
-
-from missions.bench.bench_localization import drive_loop, robot_profile
-from robots.clock import SimClock
-from robots.gridmap import FREE, OCCUPIED, GridMap, load
-from robots.interfaces import LaserScan, Pose2D
-from robots.sim.backend import SimBackend
-from robots.sim.world import World
-from skills.nav.ekf import PoseEKF, wrap
-from skills.nav.localization import Localizer, LocalizerParams, PoseEstimate, increment
-from skills.nav.scan_match import MatchResult, ScanMatcher
+from botstage.missions.bench.bench_localization import drive_loop, robot_profile
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import FREE, OCCUPIED, GridMap, load
+from botstage.robots.interfaces import LaserScan, Pose2D
+from botstage.robots.sim.backend import SimBackend
+from botstage.robots.sim.world import World
+from botstage.skills.nav.ekf import PoseEKF, wrap
+from botstage.skills.nav.localization import Localizer, LocalizerParams, PoseEstimate, increment
+from botstage.skills.nav.scan_match import MatchResult, ScanMatcher
 
 MUSEUM = load("robots/maps/museum.yaml")
 PEOPLEBOT = robot_profile("peoplebot")

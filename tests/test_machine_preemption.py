@@ -12,12 +12,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from botstage.behaviors.engine import Engine
+from botstage.missions.check import check
+from botstage.missions.runner import build
+from botstage.skills.registry import Registry
 from py_trees.common import Status
 
-from behaviors.engine import Engine
-from missions.check import check
-from missions.runner import build
-from skills.registry import Registry
 from tests.conftest import index_of
 
 

@@ -6,8 +6,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
-
-from missions.check import check
+from botstage.missions.check import check
 
 
 def problems(tmp_path: Path, text: str, name: str = "m.yaml", **others: str) -> list[str]:

@@ -6,15 +6,15 @@ tested in headless Chromium in test_monitor_browser.py.)"""
 from __future__ import annotations
 
 import pytest
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.cli import app
+from botstage.missions.monitor.hub import HISTORY, TIMELINE, Hub
+from botstage.missions.monitor.replay import RunFolderError, load_run
+from botstage.missions.monitor.server import MonitorError, start_monitor, token_for
+from botstage.missions.replay import from_trace
+from botstage.missions.scenario import load_scenario, run_scenario
 from typer.testing import CliRunner
 
-from behaviors.trace import read_jsonl
-from missions.cli import app
-from missions.monitor.hub import HISTORY, TIMELINE, Hub
-from missions.monitor.replay import RunFolderError, load_run
-from missions.monitor.server import MonitorError, start_monitor, token_for
-from missions.replay import from_trace
-from missions.scenario import load_scenario, run_scenario
 from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, replayed_run, wait_until
 
 PHOTO_MACHINE = "main/entertainer/interaction"
@@ -333,9 +333,8 @@ def test_a_finished_run_shows_the_robot_where_it_was_at_each_tick_and_the_monito
     against the same run without it); a replay serves the map and the poses at the scrubbed tick;
     a run made without the monitor replays with the simulation's true path."""
     import httpx
-
-    from missions.monitor.robot_view import read_poses
-    from missions.runner import run
+    from botstage.missions.monitor.robot_view import read_poses
+    from botstage.missions.runner import run
 
     bare = tmp_path / "bare"
     run(ENTERTAINER, out=bare, until=60)
@@ -370,7 +369,17 @@ def test_botstage_up_serves_the_monitor_from_the_missions_process(tmp_path) -> N
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     deployment = ROOT / "missions" / "deployments" / "peoplebot_five_computers.yaml"
-    command = [sys.executable, "-m", "missions.cli", "up", str(deployment), "--until", "40", "--out", str(tmp_path)]
+    command = [
+        sys.executable,
+        "-m",
+        "botstage.missions.cli",
+        "up",
+        str(deployment),
+        "--until",
+        "40",
+        "--out",
+        str(tmp_path),
+    ]
     up = subprocess.Popen(
         [*command, "--monitor", "--monitor-port", str(port)],
         cwd=ROOT,

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
+from botstage.behaviors.builder import SpecError
+from botstage.behaviors.kinds import NodeKinds
 
-from behaviors.builder import SpecError
-from behaviors.kinds import NodeKinds
 from tests.scripted_nodes import LOG, A, B, C, Hook, Scripted, leaf, run
 
 
@@ -329,13 +329,13 @@ def test_path_expiring_timer_starts_over_with_a_new_path(engine: Any) -> None:
 
 @pytest.fixture(scope="module")
 def sim() -> Any:
-    from missions.bench.navsim import NavSim
+    from botstage.missions.bench.navsim import NavSim
 
     return NavSim("museum", "peoplebot", "hall_centre")
 
 
 def test_would_a_recovery_help_reads_nav2s_codes(sim: Any) -> None:
-    from skills.nav2.conditions import WouldAControllerRecoveryHelp, WouldAPlannerRecoveryHelp
+    from botstage.skills.nav2.conditions import WouldAControllerRecoveryHelp, WouldAPlannerRecoveryHelp
 
     controller, planner = WouldAControllerRecoveryHelp(), WouldAPlannerRecoveryHelp()
     assert sim.run(controller, error_code=105).name == "success"  # FAILED_TO_MAKE_PROGRESS
@@ -348,14 +348,14 @@ def test_would_a_recovery_help_reads_nav2s_codes(sim: Any) -> None:
 
 
 def test_selectors_write_their_default(sim: Any) -> None:
-    from skills.nav2.selectors import ControllerSelector, PlannerSelector
+    from botstage.skills.nav2.selectors import ControllerSelector, PlannerSelector
 
     assert sim.run(PlannerSelector(), default_planner="GridBased").outputs == {"selected_planner": "GridBased"}
     assert sim.run(ControllerSelector(), default_controller="FollowPath").outputs["selected_controller"] == "FollowPath"
 
 
 def test_compute_path_to_pose_plans_and_says_why_it_cannot(sim: Any) -> None:
-    from skills.nav2.planning import ComputePathToPose
+    from botstage.skills.nav2.planning import ComputePathToPose
 
     ok = sim.run(ComputePathToPose(), goal="exhibit_a")
     path = ok.outputs["path"]
@@ -370,8 +370,8 @@ def test_compute_path_to_pose_plans_and_says_why_it_cannot(sim: Any) -> None:
 
 
 def test_path_utilities(sim: Any) -> None:
-    from skills.nav2.paths import IsGoalNearby, TruncatePath, TruncatePathLocal
-    from skills.nav2.utilities import GetPoseFromPath
+    from botstage.skills.nav2.paths import IsGoalNearby, TruncatePath, TruncatePathLocal
+    from botstage.skills.nav2.utilities import GetPoseFromPath
 
     x, y = sim.truth.x, sim.truth.y
     path = [[x, y], [x + 1.0, y], [x + 2.0, y], [x + 3.0, y, 0.0]]
@@ -398,7 +398,7 @@ def test_speed_controller_ticks_faster_the_faster_the_robot_goes(engine: Any, od
 
 
 def test_drive_on_heading_drives_straight_and_refuses_mixed_signs(sim: Any) -> None:
-    from skills.nav2.motions import DriveOnHeading
+    from botstage.skills.nav2.motions import DriveOnHeading
 
     start = sim.truth
     done = sim.run(DriveOnHeading(), dist_to_travel=0.5, speed=0.25)

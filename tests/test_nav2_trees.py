@@ -2,7 +2,7 @@
 
 The XML files are the Nav2 maintainers' (``../shared/nav2``, beside the checkout; never copied
 here). Each drive is one session that takes goal after goal, as Nav2's BT navigator does
-(``behaviors.nav2.navigator``), so one tree build covers every named place of a map.
+(``botstage.behaviors.nav2.navigator``), so one tree build covers every named place of a map.
 """
 
 from __future__ import annotations
@@ -15,17 +15,16 @@ from typing import Any
 
 import pytest
 import yaml
+from botstage.behaviors.btcpp.to_spec import load_xml, loads_xml
+from botstage.behaviors.engine import Engine
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
+from botstage.behaviors.nav2.models import check_models
+from botstage.behaviors.nav2.navigator import Navigator
+from botstage.missions.bench.bench_tick import NAV2_YAML
+from botstage.missions.bench.navsim import NavSim
+from botstage.missions.cli import app
+from botstage.skills.registry import Registry
 from typer.testing import CliRunner
-
-from behaviors.btcpp.to_spec import load_xml, loads_xml
-from behaviors.engine import Engine
-from behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
-from behaviors.nav2.models import check_models
-from behaviors.nav2.navigator import Navigator
-from missions.bench.bench_tick import NAV2_YAML
-from missions.bench.navsim import NavSim
-from missions.cli import app
-from skills.registry import Registry
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "nav2"
 TO_POSE = "navigate_to_pose_w_replanning_and_recovery.xml"

@@ -7,14 +7,13 @@ import math
 
 import numpy as np
 import pytest
-
-from missions.bench.navsim import NavSim, grid
-from robots.gridmap import FREE, OCCUPIED, GridMap
-from skills.approach import Approach
-from skills.back_to_point import BackToPoint
-from skills.navigate import Navigate
-from skills.recoveries import BackUp, ClearCostmap, Spin
-from skills.wander import Wander
+from botstage.missions.bench.navsim import NavSim, grid
+from botstage.robots.gridmap import FREE, OCCUPIED, GridMap
+from botstage.skills.approach import Approach
+from botstage.skills.back_to_point import BackToPoint
+from botstage.skills.navigate import Navigate
+from botstage.skills.recoveries import BackUp, ClearCostmap, Spin
+from botstage.skills.wander import Wander
 
 
 def tour(names: list[str]) -> list[str]:

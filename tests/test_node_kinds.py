@@ -7,13 +7,12 @@ from typing import Annotated, Any
 
 import py_trees
 import pytest
+from botstage.behaviors.builder import SpecError
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind, KindOptions, NodeBuild, NodeKinds
+from botstage.behaviors.render import describe, to_text
+from botstage.missions.schema import json_schema
+from botstage.skills.registry import Registry
 from pydantic import Field
-
-from behaviors.builder import SpecError
-from behaviors.kinds import CompositeKind, DecoratorKind, KindOptions, NodeBuild, NodeKinds
-from behaviors.render import describe, to_text
-from missions.schema import json_schema
-from skills.registry import Registry
 
 BUILTIN = {
     "sequence",
@@ -170,7 +169,7 @@ def test_sibling_names_are_made_unique_in_linear_time(make_engine) -> None:
 
 
 def test_an_unknown_kind_whose_plugin_failed_to_load_says_why(make_engine) -> None:
-    from robots.plugins import PluginProblem
+    from botstage.robots.plugins import PluginProblem
 
     kinds = NodeKinds.builtin()
     kinds.problems.append(PluginProblem("unless = my_kit.kinds:Unless", "import failed: ModuleNotFoundError: no"))

@@ -18,9 +18,8 @@ from pathlib import Path
 
 import pytest
 import serial
-
-from robots.drivers.opencat_protocol import Attitude, ReplyDecoder, parse_reply
-from robots.emulators.nyboard import (
+from botstage.robots.drivers.opencat_protocol import Attitude, ReplyDecoder, parse_reply
+from botstage.robots.emulators.nyboard import (
     LOW_VOLTAGE_V,
     MAX_DROP,
     MAX_GARBAGE,
@@ -28,11 +27,12 @@ from robots.emulators.nyboard import (
     NyBoardEmulator,
     resolve_skill,
 )
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.profile import Profile, load_profile, profile_path
-from robots.sim.backend import map_path
-from robots.sim.world import World
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, load_profile, profile_path
+from botstage.robots.sim.backend import map_path
+from botstage.robots.sim.world import World
+
 from tests.launchpad_helpers import FAILSAFE_S, wait_until
 
 

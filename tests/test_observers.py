@@ -9,12 +9,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from behaviors.trace import dumps
-from missions.runner import RunError, StopRun, run
-from missions.session import RunSession, observer_registry, service_registry
-from missions.session.plugins import PluginRegistry
-from missions.session.services import RobotService
+from botstage.behaviors.trace import dumps
+from botstage.missions.runner import RunError, StopRun, run
+from botstage.missions.session import RunSession, observer_registry, service_registry
+from botstage.missions.session.plugins import PluginRegistry
+from botstage.missions.session.services import RobotService
 
 ROOT = Path(__file__).resolve().parent.parent
 HELLO = ROOT / "missions" / "hello.yaml"

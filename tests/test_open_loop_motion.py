@@ -7,15 +7,14 @@ import math
 
 import numpy as np
 import pytest
-
-from missions.bench.navsim import NavSim
-from robots.clock import SimClock
-from robots.interfaces import Pose2D
-from robots.sim.world import inflate
-from skills.move import Move
-from skills.nav.contact import ContactWatch
-from skills.nav.sweep import MARGIN, in_the_way, sweep
-from skills.recoveries import BackUp, Spin
+from botstage.missions.bench.navsim import NavSim
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.sim.world import inflate
+from botstage.skills.move import Move
+from botstage.skills.nav.contact import ContactWatch
+from botstage.skills.nav.sweep import MARGIN, in_the_way, sweep
+from botstage.skills.recoveries import BackUp, Spin
 
 # the museum's south wall: its last occupied cells are centred on y = -0.175; the PeopleBot is 0.30 m round
 SOUTH_WALL_Y = -0.175

@@ -5,8 +5,7 @@ from __future__ import annotations
 import random
 
 import pytest
-
-from robots.drivers import opencat_protocol as opencat
+from botstage.robots.drivers import opencat_protocol as opencat
 
 # OpenCat 2 boots, then rests
 BOOT = b"k\r\n\r\n* Start *\r\nBittle\r\nN_250224\r\nInit IMU\r\nSkill\r\nReady!\r\ng\r\nd\r\n"

@@ -21,12 +21,11 @@ import cv2
 import httpx
 import numpy as np
 import pytest
-
-from missions.gallery.server import RunningGallery, start_gallery
-from skills.outbox.outbox import Outbox
-from skills.outbox.settings import TOKEN_ENV, OutboxSettings
-from skills.outbox.store import DAMAGED, PENDING, REJECTED, UPLOADED, OutboxError, OutboxStore
-from skills.outbox.worker import Backoff
+from botstage.missions.gallery.server import RunningGallery, start_gallery
+from botstage.skills.outbox.outbox import Outbox
+from botstage.skills.outbox.settings import TOKEN_ENV, OutboxSettings
+from botstage.skills.outbox.store import DAMAGED, PENDING, REJECTED, UPLOADED, OutboxError, OutboxStore
+from botstage.skills.outbox.worker import Backoff
 
 TOKEN = "tok-3f9c1d2e-never-log-me"
 
@@ -165,7 +164,7 @@ def test_a_worker_killed_mid_way_loses_nothing_and_sends_nothing_twice(tmp_path,
 
 CRASHING_ROBOT = """
 import sys
-from skills.outbox.outbox import Outbox
+from botstage.skills.outbox.outbox import Outbox
 outbox = Outbox(sys.argv[1], sys.argv[2], background=True)
 for photo in sys.argv[3:]:
     outbox.record(photo)

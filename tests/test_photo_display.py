@@ -11,12 +11,12 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+from botstage.robots.interfaces import CameraInfo, Pose2D
+from botstage.robots.sim.devices import SimDisplay
+from botstage.skills.display import LAYOUTS, Display
+from botstage.skills.files import RunFiles, write_atomically
+from botstage.skills.photo import Photo
 
-from robots.interfaces import CameraInfo, Pose2D
-from robots.sim.devices import SimDisplay
-from skills.display import LAYOUTS, Display
-from skills.files import RunFiles, write_atomically
-from skills.photo import Photo
 from tests.test_converse import Harness
 
 
@@ -112,7 +112,7 @@ def test_a_disk_that_refuses_the_write_fails_the_skill_not_the_mission(
     def full(*_args: Any, **_kwargs: Any) -> None:
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("skills.photo.write_atomically", full)
+    monkeypatch.setattr("botstage.skills.photo.write_atomically", full)
     harness.interfaces["camera"] = Camera(picture())
     outcome, _ = harness.run(Photo())
     assert outcome.name == "failure"
@@ -171,7 +171,7 @@ def test_an_unknown_default_layout_fails_at_once(harness: Harness) -> None:
 
 
 def test_a_photo_from_a_real_video_capture(harness: Harness, tmp_path: Path) -> None:
-    from robots.drivers.video_camera import VideoCaptureCamera, wait_for_frame
+    from botstage.robots.drivers.video_camera import VideoCaptureCamera, wait_for_frame
 
     video = tmp_path / "clip.avi"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
@@ -190,7 +190,7 @@ def test_a_photo_from_a_real_video_capture(harness: Harness, tmp_path: Path) -> 
 
 
 def test_a_camera_that_cannot_be_opened_says_which() -> None:
-    from robots.drivers.video_camera import VideoCaptureCamera
+    from botstage.robots.drivers.video_camera import VideoCaptureCamera
 
     with pytest.raises(ConnectionError, match=r"cannot open the camera '/nonexistent/cam\.avi'"):
         VideoCaptureCamera("/nonexistent/cam.avi")

@@ -9,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from robots.gridmap import FREE, OCCUPIED, GridMap, load
-from skills.nav.costmap import inflated_costs
-from skills.nav.planner import Planner, Unreachable
+from botstage.robots.gridmap import FREE, OCCUPIED, GridMap, load
+from botstage.skills.nav.costmap import inflated_costs
+from botstage.skills.nav.planner import Planner, Unreachable
 
 RADIUS = {"museum": 0.30, "restaurant": 0.2}
 

@@ -6,12 +6,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from botstage.skills.registry import ENTRY_POINT_GROUP, Registry
 
-from skills.registry import ENTRY_POINT_GROUP, Registry
 from tests.tools import install_wheel
 
 MODULE = """
-from skills.base import In, Outcome, Skill
+from botstage.skills.base import In, Outcome, Skill
 
 
 class Wave(Skill):

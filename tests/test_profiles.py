@@ -5,9 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from missions.check import check
-from robots.profile import known_profiles, load_profile
+from botstage.missions.check import check
+from botstage.robots.profile import known_profiles, load_profile
 
 CHEFBOT = Path("robots/profiles/chefbot.yaml")
 

@@ -13,13 +13,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from missions.runner import run
-from robots.backend import BackendOptions, OpenRequest
-from robots.backend_registry import BackendRegistry
-from robots.interfaces import INTERFACES, LaserScan, OdometryReading, Pose2D, Twist2D
-from robots.remote import values
-from robots.remote.devices import (
+from botstage.missions.runner import run
+from botstage.robots.backend import BackendOptions, OpenRequest
+from botstage.robots.backend_registry import BackendRegistry
+from botstage.robots.interfaces import INTERFACES, LaserScan, OdometryReading, Pose2D, Twist2D
+from botstage.robots.remote import values
+from botstage.robots.remote.devices import (
     DeviceHost,
     DirectDeviceLink,
     RemoteDeviceError,
@@ -27,7 +26,7 @@ from robots.remote.devices import (
     members_of,
     remote_devices,
 )
-from robots.sim.kind import SimKind
+from botstage.robots.sim.kind import SimKind
 
 ROOT = Path(__file__).resolve().parent.parent
 

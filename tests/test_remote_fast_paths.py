@@ -12,16 +12,15 @@ import random
 from typing import Any
 
 import pytest
+from botstage.robots.clock import SimClock
+from botstage.robots.remote import values
+from botstage.robots.ros2 import attachment
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.registry import Registry
+from botstage.skills.remote import rng
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import Call, DirectLink, Step, TickRequest, request_fields, request_of
 from pydantic import BaseModel
-
-from robots.clock import SimClock
-from robots.remote import values
-from robots.ros2 import attachment
-from skills.base import Outcome, Skill, SkillContext, SkillRun
-from skills.registry import Registry
-from skills.remote import rng
-from skills.remote.host import SkillHost
-from skills.remote.protocol import Call, DirectLink, Step, TickRequest, request_fields, request_of
 
 # every public method of random.Random, with arguments: a new one fails the first test until
 # it is listed here (and checked below to be seen when it touches the state)
@@ -162,9 +161,9 @@ def test_the_host_validates_parameters_once_per_node_and_values() -> None:
 
 
 def test_a_remote_call_of_a_skill_that_never_draws_leaves_the_generator_alone() -> None:
-    from skills.base import SkillLogger
-    from skills.execution import SkillExecution
-    from skills.remote.proxy import remote_of
+    from botstage.skills.base import SkillLogger
+    from botstage.skills.execution import SkillExecution
+    from botstage.skills.remote.proxy import remote_of
 
     host = SkillHost(Registry([Draws]), {})
     try:

@@ -15,14 +15,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from missions.runner import run
-from robots.remote import values
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from skills.registry import Registry
-from skills.remote.host import SkillHost
-from skills.remote.protocol import DirectLink, Step, TickReply, TickRequest, reply_of, request_of
-from skills.remote.proxy import RemoteLost, remote_of
+from botstage.missions.runner import run
+from botstage.robots.remote import values
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.registry import Registry
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import DirectLink, Step, TickReply, TickRequest, reply_of, request_of
+from botstage.skills.remote.proxy import RemoteLost, remote_of
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -162,8 +161,8 @@ def drive(skill_cls: type[Skill], inputs: dict[str, Any], ticks: int = 20, seed:
     """Run a skill through SkillExecution as a node does; what it did, tick by tick."""
     import random
 
-    from skills.base import SkillLogger
-    from skills.execution import SkillExecution
+    from botstage.skills.base import SkillLogger
+    from botstage.skills.execution import SkillExecution
 
     clock, board, lines = Clock(), Board(), Lines()
     rng = random.Random(seed)
@@ -259,8 +258,8 @@ def test_closing_the_host_cancels_what_runs() -> None:
     link = DirectLink(host)
     proxy = remote_of(Stuck, link)
     board = Board()
-    from skills.base import SkillLogger
-    from skills.execution import SkillExecution
+    from botstage.skills.base import SkillLogger
+    from botstage.skills.execution import SkillExecution
 
     ctx = SkillContext(Clock(), Stuck.Params(), SkillLogger("/n"), board, None, node="/n")  # type: ignore[arg-type]
     execution = SkillExecution(proxy(), ctx)

@@ -11,12 +11,11 @@ from typing import Any
 
 import pytest
 import yaml
-
-from behaviors.trace import read_jsonl
-from missions.replay import BOOKKEEPING, from_trace
-from missions.runner import run
-from missions.scenario import load_scenario, run_scenario
-from skills.registry import Registry
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.replay import BOOKKEEPING, from_trace
+from botstage.missions.runner import run
+from botstage.missions.scenario import load_scenario, run_scenario
+from botstage.skills.registry import Registry
 
 MISSIONS = sorted(Path("missions").glob("*.yaml"))
 

@@ -8,8 +8,8 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from botstage.missions.runner import run
 
-from missions.runner import run
 from tests.tools import require
 
 
@@ -70,8 +70,8 @@ def test_report_opens_cleanly_with_timeline_and_pictures(tmp_path: Path, mission
 
 
 def test_the_map_marks_each_bump_and_says_which_were_walls_and_which_people(tmp_path: Path) -> None:
-    from missions.check import check
-    from missions.report import trajectory_map
+    from botstage.missions.check import check
+    from botstage.missions.report import trajectory_map
 
     checked = check("missions/drive_demo.yaml")
     (tmp_path / "trajectory.csv").write_text("t,x,y,theta\n0,6,1,-1.57\n1,6,1.5,-1.57\n2,7,1.9,0\n")

@@ -18,9 +18,8 @@ from typing import Any
 
 import numpy
 import pytest
-
-from robots.ros2 import types
-from robots.ros2.action import (
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.action import (
     ActionServer,
     ActionServerLost,
     CancelCode,
@@ -29,11 +28,12 @@ from robots.ros2.action import (
     action_endpoints,
     goal_uuid,
 )
-from robots.ros2.attachment import Attachment
-from robots.ros2.liveliness import EntityKind
-from robots.ros2.node import Ros2Node
-from robots.ros2.qos import Durability
-from robots.ros2.service import ServiceUnavailable
+from botstage.robots.ros2.attachment import Attachment
+from botstage.robots.ros2.liveliness import EntityKind
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.qos import Durability
+from botstage.robots.ros2.service import ServiceUnavailable
+
 from tests.ros2_client.independent_interfaces import independent_hashes
 from tests.test_ros2_interop import FAILSAFE_S, ClientProcess, listening_node, pyzeros_codecs  # noqa: F401
 

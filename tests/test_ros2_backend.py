@@ -22,18 +22,18 @@ from typing import Any
 
 import numpy as np
 import pytest
+from botstage.robots.backend import BackendError, OpenRequest
+from botstage.robots.backend_options import OptionSources, resolve
+from botstage.robots.backend_registry import BackendRegistry
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import LaserScan, OdometryReading, Pose2D, TrackedPerson, Twist2D
+from botstage.robots.profile import Device, Profile, load_profile
+from botstage.robots.ros2 import botstage_messages as own
+from botstage.robots.ros2 import endpoints, node, readings
+from botstage.robots.ros2.backend import Ros2Kind
+from botstage.robots.ros2.proxies import ClockRef, Latest, StaleReadingError, anchored
+from botstage.robots.ros2.topic_robot import Ros2Backend
 
-from robots.backend import BackendError, OpenRequest
-from robots.backend_options import OptionSources, resolve
-from robots.backend_registry import BackendRegistry
-from robots.clock import SimClock
-from robots.interfaces import LaserScan, OdometryReading, Pose2D, TrackedPerson, Twist2D
-from robots.profile import Device, Profile, load_profile
-from robots.ros2 import botstage_messages as own
-from robots.ros2 import endpoints, node, readings
-from robots.ros2.backend import Ros2Kind
-from robots.ros2.proxies import ClockRef, Latest, StaleReadingError, anchored
-from robots.ros2.topic_robot import Ros2Backend
 from tests.test_ros2_interop import (  # noqa: F401  (pyzeros_codecs is a fixture)
     FAILSAFE_S,
     ClientProcess,

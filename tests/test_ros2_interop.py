@@ -26,13 +26,12 @@ from typing import Any
 
 import pytest
 import zenoh
-
-from robots.ros2 import types
-from robots.ros2.attachment import Attachment, encode, entity_gid
-from robots.ros2.graph import Graph
-from robots.ros2.liveliness import EntityKind, parse_token
-from robots.ros2.node import DEFAULT_LISTEN, Ros2Node, SubscriptionStats, session_config
-from robots.ros2.qos import Durability, QoS
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.attachment import Attachment, encode, entity_gid
+from botstage.robots.ros2.graph import Graph
+from botstage.robots.ros2.liveliness import EntityKind, parse_token
+from botstage.robots.ros2.node import DEFAULT_LISTEN, Ros2Node, SubscriptionStats, session_config
+from botstage.robots.ros2.qos import Durability, QoS
 
 ROOT = Path(__file__).resolve().parent.parent
 CLIENTS = Path(__file__).resolve().parent / "ros2_client"

@@ -6,12 +6,19 @@ import math
 
 import numpy as np
 import pytest
+from botstage.robots.interfaces import (
+    BatteryState,
+    ImuReading,
+    LaserScan,
+    OdometryReading,
+    Pose2D,
+    SonarReading,
+    Twist2D,
+)
+from botstage.robots.ros2 import readings
+from botstage.robots.ros2.readings import standard_types
 from hypothesis import given
 from hypothesis import strategies as st
-
-from robots.interfaces import BatteryState, ImuReading, LaserScan, OdometryReading, Pose2D, SonarReading, Twist2D
-from robots.ros2 import readings
-from robots.ros2.readings import standard_types
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
 angle = st.floats(min_value=-math.pi + 1e-9, max_value=math.pi - 1e-9)

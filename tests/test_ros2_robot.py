@@ -26,18 +26,18 @@ from typing import Any
 
 import pytest
 import typer
+from botstage.missions.cli.serve import profile_name, serve_app
+from botstage.missions.places import robot_place
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import OdometryReading, Twist2D
+from botstage.robots.profile import load_profile
+from botstage.robots.ros2 import readings, types
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.robot_server import RobotServer
+from botstage.robots.ros2.topics import CHANNELS, routes
+from botstage.robots.sim.backend import SimBackend
 from typer.testing import CliRunner
 
-from missions.cli.serve import profile_name, serve_app
-from missions.places import robot_place
-from robots.clock import SimClock
-from robots.interfaces import OdometryReading, Twist2D
-from robots.profile import load_profile
-from robots.ros2 import readings, types
-from robots.ros2.node import Ros2Node
-from robots.ros2.robot_server import RobotServer
-from robots.ros2.topics import CHANNELS, routes
-from robots.sim.backend import SimBackend
 from tests.test_ros2_interop import FAILSAFE_S, ClientProcess, free_port, listening_node, until
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,7 +59,7 @@ class ServedRobot:
 
     def __init__(self, *args: str) -> None:
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
-        command = [sys.executable, "-m", "missions.cli", "serve", "robot", *args, "--listen", self.endpoint]
+        command = [sys.executable, "-m", "botstage.missions.cli", "serve", "robot", *args, "--listen", self.endpoint]
         self.process = subprocess.Popen(
             command, cwd=ROOT, env=clean_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
         )
@@ -255,7 +255,7 @@ def test_a_mission_on_the_ros2_backend_drives_the_served_robot(
     command = [
         sys.executable,
         "-m",
-        "missions.cli",
+        "botstage.missions.cli",
         "run",
         str(CLIENTS / "drive_served.yaml"),
         "--backend",

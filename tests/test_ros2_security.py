@@ -28,17 +28,12 @@ from typing import Any
 import pytest
 import typer
 import zenoh
-from cryptography import x509
-from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import ExtendedKeyUsageOID
-from typer.testing import CliRunner
-
-from missions.cli.certs import certs as certs_command
-from robots.ros2 import certs, types
-from robots.ros2.attachment import Attachment, encode
-from robots.ros2.liveliness import graph_key, parse_token
-from robots.ros2.node import DEFAULT_LISTEN, ROUTER_LISTEN, Ros2Node
-from robots.ros2.security import (
+from botstage.missions.cli.certs import certs as certs_command
+from botstage.robots.ros2 import certs, types
+from botstage.robots.ros2.attachment import Attachment, encode
+from botstage.robots.ros2.liveliness import graph_key, parse_token
+from botstage.robots.ros2.node import DEFAULT_LISTEN, ROUTER_LISTEN, Ros2Node
+from botstage.robots.ros2.security import (
     ACCESS_CONTROL,
     REDACTED,
     AccessPolicy,
@@ -51,7 +46,11 @@ from robots.ros2.security import (
     security_options,
     tls_options,
 )
-from robots.ros2.service import ServiceUnavailable
+from botstage.robots.ros2.service import ServiceUnavailable
+from cryptography import x509
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import ExtendedKeyUsageOID
+from typer.testing import CliRunner
 
 ROOT = Path(__file__).resolve().parent.parent
 FIVE = ROOT / "missions" / "deployments" / "peoplebot_five_computers.yaml"
@@ -643,9 +642,9 @@ def test_key_material_travels_by_path_and_logs_redact_even_that(pki: Path) -> No
 LOGGING_CHILD = """
 import json, logging, sys
 import zenoh
-from robots.ros2 import certs
-from robots.ros2.node import Ros2Node, session_config
-from robots.ros2.security import AccessPolicy, describe, security_options
+from botstage.robots.ros2 import certs
+from botstage.robots.ros2.node import Ros2Node, session_config
+from botstage.robots.ros2.security import AccessPolicy, describe, security_options
 zenoh.init_log_from_env_or("debug")
 logging.basicConfig(level=logging.DEBUG)
 folder, endpoint, theirs = sys.argv[1], sys.argv[2], sys.argv[3]

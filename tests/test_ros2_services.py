@@ -19,14 +19,20 @@ from typing import Any
 
 import pytest
 import zenoh
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.attachment import Attachment, decode, encode
+from botstage.robots.ros2.liveliness import EntityKind, parse_token
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.qos import History, QoS
+from botstage.robots.ros2.service import (
+    PendingRequest,
+    ServiceError,
+    ServiceTimeout,
+    ServiceUnavailable,
+    is_zenoh_timeout,
+)
 from ros2_pyterfaces.cyclone.std_srvs.srv import Empty, SetBool, Trigger
 
-from robots.ros2 import types
-from robots.ros2.attachment import Attachment, decode, encode
-from robots.ros2.liveliness import EntityKind, parse_token
-from robots.ros2.node import Ros2Node
-from robots.ros2.qos import History, QoS
-from robots.ros2.service import PendingRequest, ServiceError, ServiceTimeout, ServiceUnavailable, is_zenoh_timeout
 from tests.ros2_client.independent_interfaces import AddTwoInts, Measure, Measure_Request, Thing
 from tests.test_ros2_interop import FAILSAFE_S, listening_node, until
 

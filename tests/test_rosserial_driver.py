@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from botstage.robots.drivers import rosserial_protocol as rp
+from botstage.robots.drivers.rosserial import BAUD, Orientation, RosserialDriver
+from botstage.robots.drivers.rosserial_protocol import Packet, PacketDecoder, encode_packet
 
-from robots.drivers import rosserial_protocol as rp
-from robots.drivers.rosserial import BAUD, Orientation, RosserialDriver
-from robots.drivers.rosserial_protocol import Packet, PacketDecoder, encode_packet
 from tests.launchpad_helpers import FAILSAFE_S, Board, wait_until
 
 HOST_TIME = 1_700_000_123.25
@@ -217,7 +217,7 @@ def test_a_publication_on_an_unknown_topic_asks_for_the_topics(board: Board) -> 
 def test_device_logs_go_to_python_logging(
     board: Board, driver: RosserialDriver, caplog: pytest.LogCaptureFixture
 ) -> None:
-    caplog.set_level(logging.DEBUG, logger="robots.drivers.rosserial.device")
+    caplog.set_level(logging.DEBUG, logger="botstage.robots.drivers.rosserial.device")
     for level, text in [(rp.ROSDEBUG, "dmp ready"), (rp.WARN, "fifo overflow"), (rp.FATAL, "no imu")]:
         board.send(encode_packet(rp.ID_LOG, rp.serialize(rp.log_message(level, text))))
     assert driver.wait_until(lambda: driver.counters["device_logs"] == 3, FAILSAFE_S)
@@ -344,7 +344,7 @@ def test_parameter_requests_are_answered_from_params(board: Board) -> None:
 
 
 def test_a_groovy_device_is_told_apart(board: Board, driver: RosserialDriver, caplog: pytest.LogCaptureFixture) -> None:
-    caplog.set_level(logging.WARNING, logger="robots.drivers.rosserial")
+    caplog.set_level(logging.WARNING, logger="botstage.robots.drivers.rosserial")
     body = (126).to_bytes(2, "little") + (24).to_bytes(2, "little") + rp.serialize(vector3(1.0, 2.0, 3.0))
     board.send(b"\xff\xff" + body + bytes((rp.checksum(body),)))  # rosserial 0.4: no length checksum
     assert driver.wait_until(lambda: driver.decoder.bad["protocol_version"] == 1, FAILSAFE_S)

@@ -12,10 +12,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from botstage.missions.runner import run
+from botstage.missions.session import observer_registry, service_registry
+from botstage.robots.backend_registry import BackendRegistry
 
-from missions.runner import run
-from missions.session import observer_registry, service_registry
-from robots.backend_registry import BackendRegistry
 from tests.tools import install_wheel
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -25,7 +25,7 @@ import json
 
 from pydantic import Field
 
-from robots.backend import BackendKind, BackendOptions
+from botstage.robots.backend import BackendKind, BackendOptions
 
 
 class ToyKind(BackendKind):
@@ -37,7 +37,7 @@ class ToyKind(BackendKind):
         colour: str = Field(default="red", description="the paint")
 
     def open(self, request, options):
-        from robots.sim.backend import SimBackend
+        from botstage.robots.sim.backend import SimBackend
 
         class Toy(SimBackend):
             def summary(self):
@@ -139,7 +139,7 @@ def test_the_plugin_backend_gives_the_simulator_s_trace(toy_plugin: Path, tmp_pa
 
 def test_botstage_run_opens_a_plugin_backend_and_observer_by_name(toy_plugin: Path, tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(toy_plugin), str(ROOT)])}
-    command = [sys.executable, "-m", "missions.cli", "run", str(DRIVE_DEMO), "--until", "3", "-q"]
+    command = [sys.executable, "-m", "botstage.missions.cli", "run", str(DRIVE_DEMO), "--until", "3", "-q"]
     options = ["--backend", "toy", "--backend-opt", "colour=green", "--observe", "tally", "--out", str(tmp_path / "r")]
     done = subprocess.run([*command, *options], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
     assert done.returncode == 0, done.stderr
@@ -147,7 +147,7 @@ def test_botstage_run_opens_a_plugin_backend_and_observer_by_name(toy_plugin: Pa
     lines = (tmp_path / "r" / "trace.jsonl").read_text().splitlines()
     assert summary["toy"]["colour"] == "green" and summary["tally"] == {"events": len(lines)}
     listed = subprocess.run(
-        [sys.executable, "-m", "missions.cli", "backends"],
+        [sys.executable, "-m", "botstage.missions.cli", "backends"],
         capture_output=True,
         text=True,
         env={**env, "COLUMNS": "300"},

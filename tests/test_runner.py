@@ -8,8 +8,8 @@ import signal
 from pathlib import Path
 
 import pytest
+from botstage.missions.runner import WALL_CLOCK_FIELDS, MissionInvalid, RunError, run
 
-from missions.runner import WALL_CLOCK_FIELDS, MissionInvalid, RunError, run
 from tests.test_cli import botstage
 
 SUMMARY_FIELDS = {
@@ -114,8 +114,8 @@ def test_invalid_missions_and_backends_are_refused_before_anything_moves(tmp_pat
 
 def test_a_run_with_a_skill_registered_in_code_writes_its_report(tmp_path: Path) -> None:
     """The report's picture is built with the run's registry, not the default one."""
-    from skills.base import Outcome, Skill
-    from skills.registry import Registry
+    from botstage.skills.base import Outcome, Skill
+    from botstage.skills.registry import Registry
 
     class Nod(Skill):
         name = "nod"

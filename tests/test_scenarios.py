@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+from botstage.missions.scenario import load_scenario, mock_of, run_scenario
+from botstage.skills.registry import Registry
 
-from missions.scenario import load_scenario, mock_of, run_scenario
-from skills.registry import Registry
 from tests.test_cli import botstage
 
 pytest_plugins = ["pytester"]
@@ -353,7 +353,7 @@ def test_runs_stopped_by_a_never_condition_are_not_recorded(tmp_path: Path) -> N
 
 
 def test_the_plugin_only_collects_scenarios_inside_the_root(tmp_path: Path) -> None:
-    from missions.pytest_plugin import is_scenario
+    from botstage.missions.pytest_plugin import is_scenario
 
     root = tmp_path / "scenarios" / "checkout"  # a checkout living under some folder named scenarios
     assert not is_scenario(root / "robots" / "profiles" / "chefbot.yaml", root)

@@ -4,10 +4,10 @@ from pathlib import Path
 import jsonschema
 import pytest
 import yaml
+from botstage.behaviors.kinds import NodeKinds
+from botstage.missions.schema import json_schema, parse_type
+from botstage.skills.registry import Registry
 
-from behaviors.kinds import NodeKinds
-from missions.schema import json_schema, parse_type
-from skills.registry import Registry
 from tests.test_cli import botstage
 
 SHIPPED = Path("missions/mission.schema.json")

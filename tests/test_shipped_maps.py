@@ -6,9 +6,8 @@ from collections import deque
 
 import numpy as np
 import pytest
-
-from robots.gridmap import FREE, GridMap, load
-from robots.mapdraw import MAPS, MAPS_DIR
+from botstage.robots.gridmap import FREE, GridMap, load
+from botstage.robots.mapdraw import MAPS, MAPS_DIR
 
 ROBOT_RADIUS = {"museum": 0.25, "restaurant": 0.2}  # PeopleBot, Chefbot (half their footprint)
 
@@ -49,7 +48,7 @@ def component(ok: np.ndarray, start: tuple[int, int]) -> np.ndarray:
 def test_shipped_maps_are_what_the_drawing_code_makes(name: str) -> None:
     shipped = load(MAPS_DIR / f"{name}.yaml")
     drawn = MAPS[name]()
-    assert np.array_equal(shipped.data, drawn.data), "run `python -m robots.mapdraw` and commit"
+    assert np.array_equal(shipped.data, drawn.data), "run `python -m botstage.robots.mapdraw` and commit"
     assert shipped.places == drawn.places
 
 

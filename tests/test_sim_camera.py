@@ -9,15 +9,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
-from robots.clock import SimClock
-from robots.gridmap import FREE, load
-from robots.interfaces import Camera, CameraInfo, Microphone, Pose2D, check_interfaces
-from robots.profile import load_profile
-from robots.sim.backend import SimBackend
-from robots.sim.camera import CAMERA_HEIGHT, PERSON_HEIGHT, WALL_HEIGHT
-from robots.sim.devices import SimCamera, SimMicrophone
-from robots.sim.people import Person
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import FREE, load
+from botstage.robots.interfaces import Camera, CameraInfo, Microphone, Pose2D, check_interfaces
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.backend import SimBackend
+from botstage.robots.sim.camera import CAMERA_HEIGHT, PERSON_HEIGHT, WALL_HEIGHT
+from botstage.robots.sim.devices import SimCamera, SimMicrophone
+from botstage.robots.sim.people import Person
 
 MUSEUM = load("robots/maps/museum.yaml")
 HALL = Pose2D(11.0, 10.0, 0.0)  # the hall's centre, facing +x
@@ -138,7 +137,7 @@ def test_a_person_half_behind_a_wall_shows_only_where_the_wall_is_farther() -> N
     changed = (fresh_frame(sim) != empty).any(axis=(0, 2))
     view = camera.view
     x, y, heading = view.camera_pose(sim.world)
-    from robots.sim.camera import wall_distances
+    from botstage.robots.sim.camera import wall_distances
 
     distance, _ = wall_distances(sim.world, x, y, heading + view.offsets)
     depth = distance * view.axis_cos

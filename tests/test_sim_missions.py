@@ -7,8 +7,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
-
-from missions.runner import RunError, run
+from botstage.missions.runner import RunError, run
 
 
 def test_drive_demo_moves_the_simulated_chefbot(tmp_path: Path) -> None:

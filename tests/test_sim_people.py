@@ -6,14 +6,13 @@ import math
 
 import numpy as np
 import pytest
-
-from robots.clock import SimClock
-from robots.gridmap import load
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
-from robots.sim.devices import SimPeopleTracker
-from robots.sim.people import Crowd, Person
-from robots.sim.world import World
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.devices import SimPeopleTracker
+from botstage.robots.sim.people import Crowd, Person
+from botstage.robots.sim.world import World
 
 MUSEUM = load("robots/maps/museum.yaml")
 

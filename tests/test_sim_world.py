@@ -6,11 +6,10 @@ import math
 
 import numpy as np
 import pytest
-
-from robots.gridmap import load
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
-from robots.sim.world import World
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.world import World
 
 DT = 0.05
 
@@ -162,7 +161,7 @@ def test_a_start_inside_an_obstacle_is_refused() -> None:
 
 
 def _diagonal_world(start: Pose2D, yaw: float = 0.0) -> World:
-    from robots.gridmap import GridMap
+    from botstage.robots.gridmap import GridMap
 
     data = np.zeros((100, 100), dtype=np.int8)
     for i in range(100):
@@ -183,7 +182,7 @@ def test_laser_does_not_see_through_a_thin_diagonal_wall(offset: float) -> None:
 
 
 def test_laser_honours_the_maps_origin_yaw() -> None:
-    from robots.gridmap import GridMap
+    from botstage.robots.gridmap import GridMap
 
     data = np.zeros((200, 200), dtype=np.int8)
     data[:, 150] = 100  # grid column 150: with the map turned 90 degrees, the line y = 7.5
@@ -209,8 +208,8 @@ def test_reading_a_sensor_does_not_change_the_robots_path() -> None:
 
 
 def test_odometry_speed_is_right_however_often_it_is_read() -> None:
-    from robots.clock import SimClock
-    from robots.sim.backend import SimBackend
+    from botstage.robots.clock import SimClock
+    from botstage.robots.sim.backend import SimBackend
 
     profile, _, _ = load_profile("robots/profiles/peoplebot.yaml")
     clock = SimClock(20)

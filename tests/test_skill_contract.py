@@ -6,13 +6,12 @@ from concurrent.futures import Future
 from typing import Any
 
 import pytest
+from botstage.robots.clock import SimClock
+from botstage.skills.base import In, NoParams, Out, Outcome, Skill, SkillContext, SkillLogger, SkillRun
+from botstage.skills.execution import SkillExecution
+from botstage.skills.testing import DictBoard
+from botstage.skills.workers import Workers
 from pydantic import BaseModel
-
-from robots.clock import SimClock
-from skills.base import In, NoParams, Out, Outcome, Skill, SkillContext, SkillLogger, SkillRun
-from skills.execution import SkillExecution
-from skills.testing import DictBoard
-from skills.workers import Workers
 
 
 def context(skill: Skill, logs: list[str] | None = None, workers: Workers | None = None) -> SkillContext:

@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from botstage.missions.runner import run as run_mission
+from botstage.missions.transcript import read_transcript
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import AudioSpeaker, Speaker
+from botstage.robots.sim.devices import SimSpeaker
+from botstage.skills.chat.tts import SpeechError, read_wav, synthesise
+from botstage.skills.speak import Speak
 
-from missions.runner import run as run_mission
-from missions.transcript import read_transcript
-from robots.clock import SimClock
-from robots.interfaces import AudioSpeaker, Speaker
-from robots.sim.devices import SimSpeaker
-from skills.chat.tts import SpeechError, read_wav, synthesise
-from skills.speak import Speak
 from tests.test_converse import Harness, brain_cache, isolated_cache  # noqa: F401 (fixtures: the test cache)
 from tests.tools import require
 
@@ -51,7 +51,7 @@ def speaker() -> Iterator[tuple[Harness, SimSpeaker]]:
 
 @pytest.fixture
 def no_espeak(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("skills.speak.espeak_ng", lambda: None)
+    monkeypatch.setattr("botstage.skills.speak.espeak_ng", lambda: None)
 
 
 # -- WAV --------------------------------------------------------------------------------------
@@ -292,7 +292,7 @@ def test_a_run_where_nobody_speaks_has_no_transcript(tmp_path: Path) -> None:
 
 
 def test_mocked_speech_is_in_the_transcript_too(tmp_path: Path) -> None:
-    from missions.scenario import load_scenario, run_scenario
+    from botstage.missions.scenario import load_scenario, run_scenario
 
     mission = tmp_path / "m.yaml"
     mission.write_text(CHAT_MISSION)
@@ -309,7 +309,7 @@ def test_mocked_speech_is_in_the_transcript_too(tmp_path: Path) -> None:
 
 
 def test_words_heard_then_answered_are_one_line_at_the_time_they_were_heard(tmp_path: Path) -> None:
-    from missions.transcript import transcript
+    from botstage.missions.transcript import transcript
 
     def event(t: float, ev: str, node: str, skill: str, **outputs: str) -> str:
         fields = {"t": t, "ev": ev, "node": node, "skill": skill}

@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from skills.speech.vad import FRAME, VoiceActivityDetector, find_utterances
-from skills.speech.wav import RATE, WavFormatError, read_wav, write_wav
+from botstage.skills.speech.vad import FRAME, VoiceActivityDetector, find_utterances
+from botstage.skills.speech.wav import RATE, WavFormatError, read_wav, write_wav
 
 DATA = Path(__file__).parent / "data" / "speech"
 

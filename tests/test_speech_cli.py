@@ -12,8 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from skills.speech.wav import write_wav
+from botstage.skills.speech.wav import write_wav
 
 DATA = Path(__file__).parent / "data" / "speech"
 CHECKOUT = Path(__file__).resolve().parent.parent
@@ -62,7 +61,7 @@ def test_a_missing_file_is_an_error(tmp_path: Path) -> None:
 def test_clipped_audio_is_recognised_with_a_warning(tmp_path: Path, gain: int, recognizer: str) -> None:
     """Clipped audio is decoded, with a warning. x4 clips 2 % of the samples, x8 8 %; each
     recogniser hears CANCEL."""
-    from skills.speech.wav import read_wav
+    from botstage.skills.speech.wav import read_wav
 
     loud = np.clip(read_wav(DATA / "cancel.wav").astype(np.int32) * gain, -32768, 32767).astype(np.int16)
     path = tmp_path / "loud.wav"

@@ -5,10 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
-from skills.speech.denoise import estimate_snr, suppress_noise
-from skills.speech.recognizer import Recognizer, shared_recognizer
-from skills.speech.wav import read_wav
+from botstage.skills.speech.denoise import estimate_snr, suppress_noise
+from botstage.skills.speech.recognizer import Recognizer, shared_recognizer
+from botstage.skills.speech.wav import read_wav
 
 DATA = Path(__file__).parent / "data" / "speech"
 

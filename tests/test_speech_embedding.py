@@ -13,9 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from missions.bench import bench_speech, train_speech
-from skills.speech.embedding import (
+from botstage.missions.bench import bench_speech, train_speech
+from botstage.skills.speech.embedding import (
     CLASSES,
     MODEL_SHA256,
     Classifier,
@@ -25,9 +24,9 @@ from skills.speech.embedding import (
     shared_embedding_recognizer,
     weights_path,
 )
-from skills.speech.recognizer import COMMANDS, Recognizer, recognizer_named
-from skills.speech.recording import recognize_recording
-from skills.speech.wav import read_wav
+from botstage.skills.speech.recognizer import COMMANDS, Recognizer, recognizer_named
+from botstage.skills.speech.recording import recognize_recording
+from botstage.skills.speech.wav import read_wav
 
 DATA = Path(__file__).parent / "data" / "speech"
 

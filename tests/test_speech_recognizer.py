@@ -12,10 +12,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from skills.speech.recognizer import COMMANDS, Recognizer, garbage_words, shared_recognizer
-from skills.speech.vad import find_utterances
-from skills.speech.wav import read_wav
+from botstage.skills.speech.recognizer import COMMANDS, Recognizer, garbage_words, shared_recognizer
+from botstage.skills.speech.vad import find_utterances
+from botstage.skills.speech.wav import read_wav
 
 DATA = Path(__file__).parent / "data" / "speech"
 

@@ -6,17 +6,17 @@ import itertools
 
 import numpy as np
 import pytest
+from botstage.missions.schema import VOICE_COMMANDS
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.backend import SimBackend
+from botstage.robots.sim.people import Person
+from botstage.robots.sim.voices import Voices, clips
+from botstage.skills.speech.recognizer import shared_recognizer
+from botstage.skills.speech.vad import find_utterances
 
-from missions.schema import VOICE_COMMANDS
-from robots.clock import SimClock
-from robots.gridmap import load
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
-from robots.sim.backend import SimBackend
-from robots.sim.people import Person
-from robots.sim.voices import Voices, clips
-from skills.speech.recognizer import shared_recognizer
-from skills.speech.vad import find_utterances
 from tests.test_listen import Rig
 
 MUSEUM = load("robots/maps/museum.yaml")

@@ -17,8 +17,8 @@ HEAVY = ("scipy.signal", "scipy.stats", "scipy.spatial", "scipy.ndimage", "scipy
 
 PROBE = """
 import json, sys
-from missions.check import check
-from skills.registry import Registry
+from botstage.missions.check import check
+from botstage.skills.registry import Registry
 Registry.builtin()
 check(sys.argv[1])
 print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] in ("scipy", "filterpy"))))
@@ -37,15 +37,14 @@ def test_checking_a_mission_imports_no_heavy_package() -> None:
 def test_the_heavy_packages_still_load_where_they_are_used() -> None:
     """The lazy imports are real: the functions that need scipy and filterpy work (no stale names)."""
     import numpy as np
-
-    from robots.gridmap import FREE, GridMap
-    from robots.interfaces import Pose2D
-    from skills.nav.costmap import inflated_costs
-    from skills.nav.ekf import PoseEKF
-    from skills.nav.stack import blocked_cells
-    from skills.perception.crowd import group
-    from skills.perception.tracking import PeopleTracks
-    from skills.speech.denoise import suppress_noise
+    from botstage.robots.gridmap import FREE, GridMap
+    from botstage.robots.interfaces import Pose2D
+    from botstage.skills.nav.costmap import inflated_costs
+    from botstage.skills.nav.ekf import PoseEKF
+    from botstage.skills.nav.stack import blocked_cells
+    from botstage.skills.perception.crowd import group
+    from botstage.skills.perception.tracking import PeopleTracks
+    from botstage.skills.speech.denoise import suppress_noise
 
     data = np.full((40, 40), FREE, dtype=np.int8)
     data[20, 5:35] = 100

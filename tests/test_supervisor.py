@@ -6,7 +6,7 @@ import queue
 import signal
 import sys
 
-from missions.distributed.supervisor import Supervisor
+from botstage.missions.distributed.supervisor import Supervisor
 
 FAILSAFE_S = 60.0
 

@@ -11,14 +11,14 @@ import time
 from pathlib import Path
 
 import pytest
+from botstage.missions.cli import app
+from botstage.missions.teleop import StreamKeys, Teleop, run_teleop, split_keys, status
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.sim.backend import SimBackend, map_path
 from typer.testing import CliRunner
 
-from missions.cli import app
-from missions.teleop import StreamKeys, Teleop, run_teleop, split_keys, status
-from robots.clock import SimClock
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.sim.backend import SimBackend, map_path
 from tests.launchpad_helpers import chefbot
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -124,8 +124,8 @@ def test_teleop_command_line_session_on_the_simulator() -> None:
 def test_teleop_with_certs_takes_the_operators_folder_or_the_one_botstage_certs_wrote(tmp_path: Path) -> None:
     """``--certs`` names the operator's identity (missions/distributed/security.py): its own folder, or the
     deployment's certificate folder with ``operator/`` in it; without one it says how to make it."""
-    from missions.distributed.security import credentials
-    from robots.ros2.certs import make_certificates
+    from botstage.missions.distributed.security import credentials
+    from botstage.robots.ros2.certs import make_certificates
 
     make_certificates(tmp_path / "certs", ["pi", "operator"])
     assert credentials(tmp_path / "certs", "operator").cert == tmp_path / "certs" / "operator" / "cert.pem"
@@ -143,7 +143,17 @@ def test_teleop_over_the_emulated_board_in_a_real_terminal() -> None:
     """The keys come from a terminal (a pty in cbreak mode); the robot behind is the emulator."""
     master, slave = os.openpty()
     process = subprocess.Popen(
-        [sys.executable, "-m", "missions.cli", "teleop", "chefbot", "--backend", "emulator", "--start", "10,7,0"],
+        [
+            sys.executable,
+            "-m",
+            "botstage.missions.cli",
+            "teleop",
+            "chefbot",
+            "--backend",
+            "emulator",
+            "--start",
+            "10,7,0",
+        ],
         cwd=ROOT,
         stdin=slave,
         stdout=slave,

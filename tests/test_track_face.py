@@ -15,18 +15,17 @@ from typing import Any
 
 import numpy as np
 import pytest
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import CameraInfo, Pan
+from botstage.robots.profile import Device
+from botstage.robots.sim.camera import CameraView, draw_person
+from botstage.skills.base import Outcome, SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.registry import Registry
+from botstage.skills.testing import DictBoard
+from botstage.skills.track_face import FaceTrackParams, TrackFace
+from botstage.skills.workers import Workers
 from pydantic import ValidationError
-
-from robots.clock import SimClock
-from robots.interfaces import CameraInfo, Pan
-from robots.profile import Device
-from robots.sim.camera import CameraView, draw_person
-from skills.base import Outcome, SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.registry import Registry
-from skills.testing import DictBoard
-from skills.track_face import FaceTrackParams, TrackFace
-from skills.workers import Workers
 
 WIDTH, HEIGHT, FOV = 640, 480, 1.085
 FOCAL = (WIDTH / 2) / math.tan(FOV / 2)

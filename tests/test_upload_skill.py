@@ -13,17 +13,17 @@ from typing import Any
 
 import pytest
 import yaml
+from botstage.missions.gallery.server import start_gallery
+from botstage.missions.runner import run as run_mission
+from botstage.robots.clock import SimClock
+from botstage.skills.base import Outcome, SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.outbox.service import Uploads
+from botstage.skills.outbox.settings import TOKEN_ENV, OutboxSettings
+from botstage.skills.testing import DictBoard as Board
+from botstage.skills.upload import Upload
+from botstage.skills.workers import Workers
 
-from missions.gallery.server import start_gallery
-from missions.runner import run as run_mission
-from robots.clock import SimClock
-from skills.base import Outcome, SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.outbox.service import Uploads
-from skills.outbox.settings import TOKEN_ENV, OutboxSettings
-from skills.testing import DictBoard as Board
-from skills.upload import Upload
-from skills.workers import Workers
 from tests.test_outbox import TOKEN, make_photo, photos_in
 
 

@@ -23,16 +23,15 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+from botstage.behaviors.blackboard import BlackboardError
+from botstage.behaviors.btcpp.script import Script as CompiledScript
+from botstage.behaviors.btcpp.script import ScriptRuntimeError
+from botstage.behaviors.decorators import ClockTimeout
 from py_trees.common import Status
 
-from behaviors.blackboard import BlackboardError
-from behaviors.btcpp.script import Script as CompiledScript
-from behaviors.btcpp.script import ScriptRuntimeError
-from behaviors.decorators import ClockTimeout
-
 if TYPE_CHECKING:
-    from behaviors.blackboard import NodeAccess
-    from behaviors.runtime import Runtime
+    from botstage.behaviors.blackboard import NodeAccess
+    from botstage.behaviors.runtime import Runtime
 
 Behaviour = py_trees.behaviour.Behaviour
 DONE = (Status.SUCCESS, Status.FAILURE)

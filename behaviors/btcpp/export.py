@@ -1,6 +1,6 @@
 """A botstage mission as BehaviorTree.CPP v4 XML: a file BT.CPP's parser accepts, Groot2 opens
 (its ``TreeNodesModel`` declares every node that is not BT.CPP's own, with typed, described
-ports), and ``behaviors.btcpp.to_spec`` reads back to the same mission.
+ports), and ``botstage.behaviors.btcpp.to_spec`` reads back to the same mission.
 
 - Each named tree is a ``<BehaviorTree ID>`` in BT.CPP's compact syntax (``<navigate goal=…/>``).
 - botstage kinds that behave as a BT.CPP built-in are written under its tag, with ``_botstage``
@@ -27,11 +27,11 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, get_args, get_origin
 
-from behaviors.btcpp.to_spec import RENAMED, btcpp_kinds, convert
-from behaviors.kinds import CompositeKind, DecoratorKind, LeafKind, NodeKinds
-from robots.located_yaml import Loaded, Location, Problem
-from skills.base import plain_type, type_name
-from skills.registry import Registry
+from botstage.behaviors.btcpp.to_spec import RENAMED, btcpp_kinds, convert
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind, LeafKind, NodeKinds
+from botstage.robots.located_yaml import Loaded, Location, Problem
+from botstage.skills.base import plain_type, type_name
+from botstage.skills.registry import Registry
 
 SpecPath = tuple[str | int, ...]
 MARKER = "_botstage"  # on a BT.CPP built-in's tag: the botstage kind it was written from
@@ -754,7 +754,7 @@ def _port(parent: ET.Element, direction: str, name: str, botstage_type: str, doc
 
 
 def export_loaded(loaded: Loaded, registry: Registry | None = None, kinds: NodeKinds | None = None) -> str:
-    """A loaded mission (``missions.loader.load``'s result) as BT.CPP v4 XML text.
+    """A loaded mission (``botstage.missions.loader.load``'s result) as BT.CPP v4 XML text.
 
     Raises ``ExportError`` with every problem located in the mission's files."""
     if loaded.data is None or loaded.problems:
@@ -768,6 +768,6 @@ def export_mission(
     registry: Registry | None = None,
     kinds: NodeKinds | None = None,
 ) -> str:
-    """The mission at ``path`` as BT.CPP v4 XML text; ``load`` is ``missions.loader.load`` (passed
+    """The mission at ``path`` as BT.CPP v4 XML text; ``load`` is ``botstage.missions.loader.load`` (passed
     in: behaviors never imports missions). Raises ``ExportError`` (located problems)."""
     return export_loaded(load(Path(path)), registry, kinds)

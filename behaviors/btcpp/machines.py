@@ -1,4 +1,4 @@
-"""Reads back what ``behaviors.btcpp.export`` writes beyond BT.CPP's own nodes: botstage kinds
+"""Reads back what ``botstage.behaviors.btcpp.export`` writes beyond BT.CPP's own nodes: botstage kinds
 (custom nodes of their own name, or BT.CPP built-ins marked ``_botstage``), a skill node's
 ``_success_on`` and ``_params``, ``<StateMachine>``/``<State>`` machines, named machines
 (``<BehaviorTree ID="machine:NAME">``) and the ``<BotstageMission>`` settings.
@@ -14,7 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from behaviors.btcpp.export import (
+from botstage.behaviors.btcpp.export import (
     ARGUMENT_PORTS,
     COMPOSITES,
     DECORATORS,
@@ -31,11 +31,11 @@ from behaviors.btcpp.export import (
     reads_beyond_btcpp,
     split_outside_quotes,
 )
-from behaviors.btcpp.to_spec import IGNORED, NODE_MODELS, Converter, SpecPath, _Tree
-from behaviors.btcpp.xml_reader import Element
-from behaviors.kinds import CompositeKind, DecoratorKind
-from behaviors.suggest import did_you_mean
-from robots.located_yaml import Location
+from botstage.behaviors.btcpp.to_spec import IGNORED, NODE_MODELS, Converter, SpecPath, _Tree
+from botstage.behaviors.btcpp.xml_reader import Element
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind
+from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.located_yaml import Location
 
 _REF = re.compile(r"^\{@?[^{}]*\}$")
 _TRANSITION = re.compile(r"^\s*(\S+)\s*->\s*(\S+)(?:\s+if\s+(.+))?\s*$", re.DOTALL)

@@ -2,12 +2,12 @@
 
 Ports are options beside the kind, named as in BT.CPP (``{RetryUntilSuccessful: NODE,
 num_attempts: 3}``, ``{Parallel: [...], success_count: 2}``); leaves take their ports as their
-value (``{Sleep: {msec: 500}}``). The XML importer (``behaviors.btcpp.to_spec``) writes exactly
+value (``{Sleep: {msec: 500}}``). The XML importer (``botstage.behaviors.btcpp.to_spec``) writes exactly
 this. Where an existing botstage node has BT.CPP's semantics it is reused (Inverter, ForceSuccess,
 ForceFailure, KeepRunningUntilFailure, the mission-clock Timeout); the rest are in
-``behaviors.btcpp.behaviours``.
+``botstage.behaviors.btcpp.behaviours``.
 
-Scripts (``behaviors.btcpp.script``) are compiled when the tree is built, their names bound to
+Scripts (``botstage.behaviors.btcpp.script``) are compiled when the tree is built, their names bound to
 keys like ``{key}``: ``{Script: {code: "n := n + 1"}}``, ``{ScriptCondition: {code: ...}}``,
 ``{Precondition: NODE, if_: "...", else: SKIPPED}`` (``if_``: ``if`` is botstage's own guard
 kind) and ``{PrePostConditions: NODE, _skipIf: "...", _post: "..."}``, which carries BT.CPP's
@@ -22,17 +22,16 @@ from collections.abc import Mapping
 from typing import Annotated, Any, ClassVar, Literal
 
 import py_trees
+from botstage.behaviors.btcpp import behaviours as bt
+from botstage.behaviors.btcpp.script import ScriptError, compile_script
+from botstage.behaviors.decorators import ClockTimeout
+from botstage.behaviors.kinds import decorators as botstage
+from botstage.behaviors.kinds.base import CompositeKind, DecoratorKind, Described, KindOptions, LeafKind, NodeBuild
+from botstage.behaviors.skill_behaviour import KeyRef
+from botstage.behaviors.skill_binding import parse_binding
+from botstage.behaviors.suggest import did_you_mean
 from py_trees.common import Status
 from pydantic import Field, PlainValidator, WithJsonSchema, create_model
-
-from behaviors.btcpp import behaviours as bt
-from behaviors.btcpp.script import ScriptError, compile_script
-from behaviors.decorators import ClockTimeout
-from behaviors.kinds import decorators as botstage
-from behaviors.kinds.base import CompositeKind, DecoratorKind, Described, KindOptions, LeafKind, NodeBuild
-from behaviors.skill_behaviour import KeyRef
-from behaviors.skill_binding import parse_binding
-from behaviors.suggest import did_you_mean
 
 
 class LiteralType:

@@ -16,7 +16,7 @@ touches it. ``+`` joins two strings (BT.CPP before ``..`` existed). Comparing a 
 number reads the string as a number (a port written in XML is text) and fails if it is not one.
 Enums (``ScriptingEnumsRegistry``) are not supported: botstage registers none.
 
-Sizes are bounded by ``robots.limits`` like botstage's own conditions.
+Sizes are bounded by ``botstage.robots.limits`` like botstage's own conditions.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from robots import limits
+from botstage.robots import limits
 
 
 class ScriptError(ValueError):

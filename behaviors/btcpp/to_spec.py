@@ -2,7 +2,7 @@
 XML line and column of every node, so checking, running and pictures work on it unchanged.
 
 - ``<BehaviorTree ID>`` become ``trees``; ``main_tree_to_execute`` (or the only tree) is ``root``.
-- BT.CPP's built-in nodes become the kinds of the same name (``behaviors.btcpp.nodes``), their
+- BT.CPP's built-in nodes become the kinds of the same name (``botstage.behaviors.btcpp.nodes``), their
   ports options converted to the port's type.
 - A node whose ID is a botstage skill runs that skill: attributes naming its input ports are its
   inputs (literals converted by the port's type, ``{key}`` a blackboard key), those naming its
@@ -31,21 +31,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args, get_origin
 
-from behaviors.btcpp.script import ScriptError, compile_script
-from behaviors.btcpp.xml_reader import Element, parse, parse_bytes
-from behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
-from behaviors.suggest import did_you_mean
-from robots import limits
-from robots.located_yaml import Loaded, Location, Locations, Problem, display_name
-from skills.base import plain_type
-from skills.registry import Registry
+from botstage.behaviors.btcpp.script import ScriptError, compile_script
+from botstage.behaviors.btcpp.xml_reader import Element, parse, parse_bytes
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
+from botstage.behaviors.suggest import did_you_mean
+from botstage.robots import limits
+from botstage.robots.located_yaml import Loaded, Location, Locations, Problem, display_name
+from botstage.skills.base import plain_type
+from botstage.skills.registry import Registry
 
 SpecPath = tuple[str | int, ...]
 NODE_MODELS = ("Action", "Condition", "Control", "Decorator")  # <Action ID="X"/>, BT.CPP v3's long form
 # attributes BT.CPP and Groot2 write on any node that are not ports
 IGNORED = frozenset({"_uid", "_fullpath", "_description"})
 CONDITIONS = ("_skipIf", "_failureIf", "_successIf", "_while", "_onSuccess", "_onFailure", "_onHalted", "_post")
-WRAPPER = "PrePostConditions"  # the kind that carries a node's CONDITIONS (behaviors.btcpp.nodes)
+WRAPPER = "PrePostConditions"  # the kind that carries a node's CONDITIONS (botstage.behaviors.btcpp.nodes)
 KEY_PORTS = frozenset({("SetBlackboard", "output_key"), ("UnsetBlackboard", "key")})  # text is a key's name
 SCRIPT_PORTS = frozenset({("Script", "code"), ("ScriptCondition", "code"), ("Precondition", "if")})
 RENAMED = {("Precondition", "if"): "if_"}  # `if` is botstage's guard kind: a node names exactly one kind
@@ -60,8 +60,8 @@ _REF = re.compile(r"^\{(@?)([^{}]*)\}$")
 
 
 def btcpp_kinds(kinds: NodeKinds) -> list[str]:
-    """The kinds of BT.CPP's built-in node set (registered from ``behaviors.btcpp.nodes``)."""
-    return [name for name in kinds if type(kinds.get(name)).__module__ == "behaviors.btcpp.nodes"]
+    """The kinds of BT.CPP's built-in node set (registered from ``botstage.behaviors.btcpp.nodes``)."""
+    return [name for name in kinds if type(kinds.get(name)).__module__ == "botstage.behaviors.btcpp.nodes"]
 
 
 @dataclass
@@ -527,7 +527,7 @@ def _members(tp: Any) -> tuple[Any, ...]:
 
 def literal_type(tp: Any) -> Any:
     """How an attribute's text for a port of type ``tp`` is read: a ``literal_type`` the port's
-    annotation names (``behaviors.btcpp.nodes.LiteralType``), else the type; a union with
+    annotation names (``botstage.behaviors.btcpp.nodes.LiteralType``), else the type; a union with
     ``str`` or ``Literal[...]`` is text, a union of numbers a float."""
     for meta in _metadata(tp):
         if hasattr(meta, "literal_type"):
@@ -614,7 +614,7 @@ def _loaded(
     kinds: NodeKinds | None,
 ) -> Loaded:
     # -- botstage-export (issue 22): the converter also reads what behaviors/btcpp/export.py writes
-    from behaviors.btcpp.machines import ExportedConverter
+    from botstage.behaviors.btcpp.machines import ExportedConverter
 
     converter = ExportedConverter(name, registry, kinds)
     # -- end botstage-export

@@ -2,7 +2,7 @@
 
 ``xml.parsers.expat`` from the standard library reports the position of every start tag, which
 ``xml.etree`` throws away; the importer needs it to locate its errors (``tree.xml:12:5: error: ...``).
-Expat resolves no external entities, and the file is bounded by ``robots.limits``.
+Expat resolves no external entities, and the file is bounded by ``botstage.robots.limits``.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
 
-from robots import limits
-from robots.located_yaml import Location, Problem, display_name
+from botstage.robots import limits
+from botstage.robots.located_yaml import Location, Problem, display_name
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Node kinds: every composite, decorator and leaf a tree can hold, registered by name."""
 
-from behaviors.kinds.base import (
+from botstage.behaviors.kinds.base import (
     CompositeKind,
     DecoratorKind,
     Described,
@@ -10,7 +10,7 @@ from behaviors.kinds.base import (
     NodeKind,
     NoOptions,
 )
-from behaviors.kinds.registry import ENTRY_POINT_GROUP, NodeKinds
+from botstage.behaviors.kinds.registry import ENTRY_POINT_GROUP, NodeKinds
 
 __all__ = [
     "ENTRY_POINT_GROUP",

@@ -25,9 +25,9 @@ import py_trees
 from pydantic import BaseModel, ConfigDict, TypeAdapter
 
 if TYPE_CHECKING:
-    from behaviors.runtime import Runtime
-    from skills.expression import Expression
-    from skills.registry import Registry
+    from botstage.behaviors.runtime import Runtime
+    from botstage.skills.expression import Expression
+    from botstage.skills.registry import Registry
 
 SpecPath = tuple[str | int, ...]
 NODE_REF: dict[str, Any] = {"$ref": "#/$defs/node"}

@@ -5,10 +5,9 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import py_trees
+from botstage.behaviors.kinds.base import CompositeKind, KindOptions, NodeBuild
+from botstage.behaviors.suggest import did_you_mean
 from pydantic import Field
-
-from behaviors.kinds.base import CompositeKind, KindOptions, NodeBuild
-from behaviors.suggest import did_you_mean
 
 PARALLEL_POLICIES = ("success_on_all", "success_on_one", "success_on_selected")
 

@@ -7,15 +7,14 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, ClassVar, Literal
 
 import py_trees
+from botstage.behaviors.decorators import ClockTimeout, Guard
+from botstage.behaviors.kinds.base import DecoratorKind, KindOptions, NodeBuild
+from botstage.robots.limits import MAX_SECONDS, MAX_TIMES, PositiveSeconds, Seconds, Times
 from py_trees.common import Status
 from pydantic import Field
 
-from behaviors.decorators import ClockTimeout, Guard
-from behaviors.kinds.base import DecoratorKind, KindOptions, NodeBuild
-from robots.limits import MAX_SECONDS, MAX_TIMES, PositiveSeconds, Seconds, Times
-
 if TYPE_CHECKING:
-    from behaviors.runtime import Runtime
+    from botstage.behaviors.runtime import Runtime
 
 
 class Inverter(DecoratorKind):

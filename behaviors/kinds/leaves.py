@@ -11,11 +11,18 @@ from collections.abc import Mapping
 from typing import Any
 
 import py_trees
+from botstage.behaviors.kinds.base import (
+    CONDITION_SCHEMA,
+    MACHINE_REF,
+    NODE_REF,
+    Described,
+    KindOptions,
+    LeafKind,
+    NodeBuild,
+)
+from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
+from botstage.skills.registry import Registry
 from pydantic import Field
-
-from behaviors.kinds.base import CONDITION_SCHEMA, MACHINE_REF, NODE_REF, Described, KindOptions, LeafKind, NodeBuild
-from behaviors.skill_behaviour import KeyRef, SkillBehaviour
-from skills.registry import Registry
 
 SUCCESS_ON_SCHEMA: dict[str, Any] = {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]}
 

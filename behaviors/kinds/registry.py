@@ -15,15 +15,15 @@ from __future__ import annotations
 import importlib
 from collections.abc import Iterable, Iterator
 
-from behaviors.kinds.base import NodeKind
-from robots.plugins import PluginProblem, discover
+from botstage.behaviors.kinds.base import NodeKind
+from botstage.robots.plugins import PluginProblem, discover
 
 ENTRY_POINT_GROUP = "botstage.nodes"
 BUILTIN_MODULES = (
-    "behaviors.kinds.composites",
-    "behaviors.kinds.decorators",
-    "behaviors.kinds.leaves",
-    "behaviors.btcpp.nodes",  # BehaviorTree.CPP v4's built-in nodes, under their BT.CPP IDs
+    "botstage.behaviors.kinds.composites",
+    "botstage.behaviors.kinds.decorators",
+    "botstage.behaviors.kinds.leaves",
+    "botstage.behaviors.btcpp.nodes",  # BehaviorTree.CPP v4's built-in nodes, under their BT.CPP IDs
 )
 
 

@@ -1,7 +1,7 @@
 """Nav2's control and decorator nodes as py_trees behaviours, tick for tick.
 
 Each class follows Nav2's own ``tick()``/``halt()`` (nav2_behavior_tree/plugins/control/*.cpp and
-plugins/decorator/*.cpp). Two translations hold throughout, as in ``behaviors.btcpp.behaviours``:
+plugins/decorator/*.cpp). Two translations hold throughout, as in ``botstage.behaviors.btcpp.behaviours``:
 
 - BT.CPP's ``haltChild`` halts a running child and resets any other to IDLE; here a running child
   is stopped (its skill cancelled) and a completed one is set back to INVALID, which is IDLE. A
@@ -24,8 +24,8 @@ import py_trees
 from py_trees.common import Status
 
 if TYPE_CHECKING:
-    from behaviors.blackboard import NodeAccess
-    from robots.clock import Clock
+    from botstage.behaviors.blackboard import NodeAccess
+    from botstage.robots.clock import Clock
 
 Behaviour = py_trees.behaviour.Behaviour
 

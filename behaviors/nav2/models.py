@@ -1,6 +1,6 @@
 """A TreeNodesModel (Nav2's nav2_tree_nodes.xml, as Groot2 loads it) against botstage's node set.
 
-Importing the model file itself gives no trees (``behaviors.btcpp.to_spec``); this says, for each
+Importing the model file itself gives no trees (``botstage.behaviors.btcpp.to_spec``); this says, for each
 node it declares, whether botstage has a node of that ID (a skill or a kind) and whether their
 ports agree: every declared port exists on botstage's node, in the same direction, with the same
 default. That is the contract of the Nav2 node set: Nav2's XML written against the model runs here.
@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from behaviors.btcpp.xml_reader import Element, parse
-from behaviors.kinds import NodeKinds
-from robots.located_yaml import Location, Problem
-from skills.base import MISSING
-from skills.registry import Registry
+from botstage.behaviors.btcpp.xml_reader import Element, parse
+from botstage.behaviors.kinds import NodeKinds
+from botstage.robots.located_yaml import Location, Problem
+from botstage.skills.base import MISSING
+from botstage.skills.registry import Registry
 
 DIRECTIONS = {"input_port": "input", "output_port": "output", "inout_port": "inout", "bidirectional_port": "inout"}
 

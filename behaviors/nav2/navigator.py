@@ -13,9 +13,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from botstage.behaviors.engine import Engine
 from py_trees.common import Status
-
-from behaviors.engine import Engine
 
 # Nav2's default error_code_name_prefixes (nav2_bt_navigator), each as `<prefix>_error_code`
 ERROR_CODE_PREFIXES = (

@@ -17,13 +17,12 @@ from collections.abc import Callable, Mapping
 from typing import Annotated, Any, ClassVar
 
 import py_trees
+from botstage.behaviors.kinds.base import CompositeKind, DecoratorKind, KindOptions, LeafKind, NodeBuild
+from botstage.behaviors.nav2 import behaviours as nav2
+from botstage.behaviors.skill_behaviour import KeyRef
+from botstage.behaviors.skill_binding import parse_binding
+from botstage.behaviors.suggest import did_you_mean
 from pydantic import Field
-
-from behaviors.kinds.base import CompositeKind, DecoratorKind, KindOptions, LeafKind, NodeBuild
-from behaviors.nav2 import behaviours as nav2
-from behaviors.skill_behaviour import KeyRef
-from behaviors.skill_binding import parse_binding
-from behaviors.suggest import did_you_mean
 
 Positive = Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]
 NonNegative = Annotated[float, Field(ge=0, le=1e6, allow_inf_nan=False)]

@@ -4,7 +4,7 @@ The YAML file format is one front end of this API: ``Mission.from_yaml(path)`` g
 objects Python builds, and ``Mission.to_yaml()`` the file a user could save. The engine sees only
 the plain data both produce, so a mission and its YAML twin run to the same trace::
 
-    from missions.api import Condition, Mission, Sequence, Skill, StateMachine, Timeout, key
+    from botstage.missions.api import Condition, Mission, Sequence, Skill, StateMachine, Timeout, key
 
     mission = Mission("patrol", seed=7, until=60, blackboard={"battery_pct": 100, "estop": False})
     mission.add_tree("patrol", Sequence(
@@ -22,12 +22,12 @@ the plain data both produce, so a mission and its YAML twin run to the same trac
 
 Plug-in node kinds and skills take the general form ``Node(kind, value, **options)``, e.g.
 ``Node("approach", {"target": key("crowd_centre")}, outputs={"distance": "d"})``; a plain spec
-mapping is accepted wherever a node is. ``python -m missions.examples.hello_api`` runs an example.
+mapping is accepted wherever a node is. ``python -m botstage.missions.examples.hello_api`` runs an example.
 """
 
-from missions.api.machine import Preemption, State, StateMachine
-from missions.api.mission import Mission
-from missions.api.nodes import (
+from botstage.missions.api.machine import Preemption, State, StateMachine
+from botstage.missions.api.mission import Mission
+from botstage.missions.api.nodes import (
     Condition,
     Fallback,
     ForceFailure,

@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from missions.loader import Location, Locations, Problem
+from botstage.missions.loader import Location, Locations, Problem
 
 SpecPath = tuple[Any, ...]  # a place in the data: ("trees", "main", "sequence", 0)
 PLAIN = (type(None), bool, int, float, str)

@@ -11,10 +11,10 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from missions.api.lowering import Lowering, Part, SpecPath, in_order
-from missions.api.nodes import MachineRef, Node, NodeLike, Skill, as_node
-from missions.api.where import caller
-from missions.loader import Location
+from botstage.missions.api.lowering import Lowering, Part, SpecPath, in_order
+from botstage.missions.api.nodes import MachineRef, Node, NodeLike, Skill, as_node
+from botstage.missions.api.where import caller
+from botstage.missions.loader import Location
 
 STATE_OPTIONS = ("inputs", "outputs", "params", "success_on")  # a skill state's, besides the skill
 

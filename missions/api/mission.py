@@ -16,18 +16,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yaml
-
-from missions.api.lowering import Lowering, Part, in_order
-from missions.api.machine import StateMachine
-from missions.api.nodes import NodeLike, as_node
-from missions.api.specs import machine_of, node_of
-from missions.api.where import caller, caller_file
-from missions.check import Checked, check_loaded, describe_part
-from missions.loader import Loaded, Location, Problem, load
+from botstage.missions.api.lowering import Lowering, Part, in_order
+from botstage.missions.api.machine import StateMachine
+from botstage.missions.api.nodes import NodeLike, as_node
+from botstage.missions.api.specs import machine_of, node_of
+from botstage.missions.api.where import caller, caller_file
+from botstage.missions.check import Checked, check_loaded, describe_part
+from botstage.missions.loader import Loaded, Location, Problem, load
 
 if TYPE_CHECKING:  # the runner loads the simulator and friends: only when a mission runs
-    from missions.runner import RunResult
-    from skills.registry import Registry
+    from botstage.missions.runner import RunResult
+    from botstage.skills.registry import Registry
 
 # the file format's top-level keys, in the order a file is written (`include` is the loader's)
 FIELDS = (
@@ -66,7 +65,7 @@ RUN_FILE = "mission.yaml"  # what a run of a Python mission leaves in its folder
 
 
 def _invalid(problems: list[Problem]) -> Exception:
-    from missions.runner import MissionInvalid
+    from botstage.missions.runner import MissionInvalid
 
     return MissionInvalid(problems)
 
@@ -222,7 +221,7 @@ class Mission:
     def from_python(cls, target: str | Path) -> Mission:
         """The mission a Python module defines: what its ``build()`` returns, else its ``mission``.
 
-        ``target`` is a file (``my_mission.py``) or a module (``missions.examples.hello_api``).
+        ``target`` is a file (``my_mission.py``) or a module (``botstage.missions.examples.hello_api``).
         """
         if str(target).endswith(".py"):
             path = Path(target).resolve()
@@ -299,8 +298,8 @@ class Mission:
         """A picture of what runs (or of its machine, or of a named tree), as ``botstage tree`` /
         ``botstage machine`` draw it: text for ascii, unicode, dot, svg, mermaid and json, bytes
         for png. ``fmt`` defaults to unicode for trees, ascii for machines."""
-        from behaviors.render import FORMATS, render
-        from missions.pictures import machine_picture
+        from botstage.behaviors.render import FORMATS, render
+        from botstage.missions.pictures import machine_picture
 
         fmt = fmt or ("ascii" if machine else "unicode")
         if fmt not in FORMATS:
@@ -319,14 +318,14 @@ class Mission:
         return picture if fmt == "png" else picture.decode()
 
     def run(self, *, out: Path | None = None, registry: Registry | None = None, **options: Any) -> RunResult:
-        """Check, then run as ``missions.runner.run`` does (same options: ``backend``, ``seed``,
+        """Check, then run as ``botstage.missions.runner.run`` does (same options: ``backend``, ``seed``,
         ``until``, ``realtime``, ``blackboard``, ``before_tick``, ...).
 
         The runner takes a file: a mission changed since (or never) loaded from one is checked
         here first, so problems point at the Python lines, then written to the run folder as
         ``mission.yaml`` and run from there (the run's ``summary.json`` names that file).
         """
-        from missions.runner import run, run_folder
+        from botstage.missions.runner import run, run_folder
 
         checked = self.checked(registry)
         if self._file is not None and self.to_dict() == self._as_loaded:
@@ -339,8 +338,8 @@ class Mission:
 
     def _runnable(self, name: str) -> dict[str, Any]:
         """The data to run from a file elsewhere: named, its robot and world paths made absolute."""
-        from robots.profile import known_profiles, profile_path
-        from robots.sim.backend import known_maps, map_path
+        from botstage.robots.profile import known_profiles, profile_path
+        from botstage.robots.sim.backend import known_maps, map_path
 
         data = {"name": name, **self.to_dict()}
         for field, find, shipped in (("robot", profile_path, known_profiles), ("world", map_path, known_maps)):

@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any, ClassVar
 
-from missions.api.lowering import Lowering, Part, SpecPath, in_order
-from missions.api.where import caller
-from missions.loader import Location
+from botstage.missions.api.lowering import Lowering, Part, SpecPath, in_order
+from botstage.missions.api.where import caller
+from botstage.missions.loader import Location
 
 NodeLike = Any  # a Node, a StateMachine (run as a node), a spec mapping, or a skill's name
 

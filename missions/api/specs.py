@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
-from missions.api.machine import Preemption, State, StateMachine
-from missions.api.nodes import BUILT_IN, Node
+from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
+from botstage.missions.api.machine import Preemption, State, StateMachine
+from botstage.missions.api.nodes import BUILT_IN, Node
 
 
 class _Reader:

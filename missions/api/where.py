@@ -15,7 +15,7 @@ from functools import lru_cache
 from pathlib import Path
 from types import FrameType
 
-from missions.loader import Location, display_name
+from botstage.missions.loader import Location, display_name
 
 _PACKAGE = __name__.rpartition(".")[0]  # frames inside the API are not the caller
 

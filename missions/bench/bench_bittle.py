@@ -31,17 +31,16 @@ from typing import Any
 
 import numpy as np
 import serial
-
-from missions.bench.bench_serial import Pty, bench_pty_floor, percentile
-from missions.places import robot_place
-from robots.clock import SimClock
-from robots.drivers import opencat_protocol as opencat
-from robots.drivers.bittle_base import BittleBase, open_bittle
-from robots.emulators.nyboard import NyBoardEmulator
-from robots.interfaces import Pose2D
-from robots.profile import Profile
-from robots.sim.backend import SimBackend
-from robots.sim.world import World
+from botstage.missions.bench.bench_serial import Pty, bench_pty_floor, percentile
+from botstage.missions.places import robot_place
+from botstage.robots.clock import SimClock
+from botstage.robots.drivers import opencat_protocol as opencat
+from botstage.robots.drivers.bittle_base import BittleBase, open_bittle
+from botstage.robots.emulators.nyboard import NyBoardEmulator
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile
+from botstage.robots.sim.backend import SimBackend
+from botstage.robots.sim.world import World
 
 LINE_RATE_BYTES = 115200 / 10  # 8N1: ten bits a byte
 TARGET_PARSER_RATIO = 100.0

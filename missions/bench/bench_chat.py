@@ -27,9 +27,9 @@ import tracemalloc
 from pathlib import Path
 from typing import Any
 
-from skills.chat.cache import fingerprint, load_brain, read_brain
-from skills.chat.chatbot import Chatbot
-from skills.chat.persona import aiml_files
+from botstage.skills.chat.cache import fingerprint, load_brain, read_brain
+from botstage.skills.chat.chatbot import Chatbot
+from botstage.skills.chat.persona import aiml_files
 
 TARGET_RATIO = 10.0
 

@@ -28,10 +28,9 @@ import time
 from typing import Any
 
 import numpy as np
-
-from skills.perception.crowd import CrowdTracker
-from skills.perception.people_tracking import map_to_sensor
-from skills.perception.tracking import PeopleTracks
+from botstage.skills.perception.crowd import CrowdTracker
+from botstage.skills.perception.people_tracking import map_to_sensor
+from botstage.skills.perception.tracking import PeopleTracks
 
 PAPER = {"x_mean_cm": 2.86, "x_std_cm": 2.27, "z_mean_cm": 3.81, "z_std_cm": 2.03}
 START = (11.0, 10.0, 0.0)  # museum hall centre, facing +x
@@ -64,8 +63,8 @@ def _group(rng: np.random.Generator, size: int) -> list[tuple[float, float]]:
 
 
 def bench_accuracy(trials: int, seed: int = 5) -> dict[str, Any]:
-    from missions.bench.navsim import NavSim
-    from skills.perception.people_tracking import sensor_to_map
+    from botstage.missions.bench.navsim import NavSim
+    from botstage.skills.perception.people_tracking import sensor_to_map
 
     rng = np.random.default_rng(seed)
     ours: list[tuple[float, float]] = []
@@ -158,12 +157,11 @@ def bench_cost(frames: int, people: int = 15, seed: int = 1) -> dict[str, Any]:
 
 def bench_camera(scenes: int, seed: int = 9) -> dict[str, Any]:
     import cv2
-
-    from missions.bench.navsim import NavSim
-    from robots.interfaces import Pose2D
-    from robots.sim.people import Person
-    from skills.perception.camera_people import CameraPeopleTracker, detect_faces, load_cascade
-    from skills.perception.people_tracking import sensor_to_map
+    from botstage.missions.bench.navsim import NavSim
+    from botstage.robots.interfaces import Pose2D
+    from botstage.robots.sim.people import Person
+    from botstage.skills.perception.camera_people import CameraPeopleTracker, detect_faces, load_cascade
+    from botstage.skills.perception.people_tracking import sensor_to_map
 
     rng = np.random.default_rng(seed)
     cascade = load_cascade()

@@ -24,14 +24,14 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from behaviors.engine import Engine
-from missions import MISSIONS_DIR
-from missions.runner import run
-from robots import PROFILES_DIR
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
-from skills.nav.ekf import wrap
-from skills.nav.localization import Localizer
+from botstage.behaviors.engine import Engine
+from botstage.missions import MISSIONS_DIR
+from botstage.missions.runner import run
+from botstage.robots import PROFILES_DIR
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
+from botstage.skills.nav.ekf import wrap
+from botstage.skills.nav.localization import Localizer
 
 MISSION = MISSIONS_DIR / "chefbot_delivery.yaml"
 SEEDS = (1, 2, 3, 4, 5)

@@ -18,8 +18,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from missions import DEFAULT_MISSION
-from missions.runner import run
+from botstage.missions import DEFAULT_MISSION
+from botstage.missions.runner import run
 
 TARGET_WALL_S = 60.0  # for 600 s of mission time
 SEEDS = tuple(range(1, 11))

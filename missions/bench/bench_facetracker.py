@@ -40,19 +40,18 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-from missions.bench.bench_serial import percentile
-from missions.places import robot_place
-from robots.backend import ScriptedWalk
-from robots.clock import SimClock
-from robots.interfaces import CameraInfo
-from robots.sim.backend import SimBackend
-from skills.base import SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.perception.face_tracking import FaceDetector
-from skills.testing import DictBoard
-from skills.track_face import TrackFace
-from skills.workers import Workers
+from botstage.missions.bench.bench_serial import percentile
+from botstage.missions.places import robot_place
+from botstage.robots.backend import ScriptedWalk
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import CameraInfo
+from botstage.robots.sim.backend import SimBackend
+from botstage.skills.base import SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.perception.face_tracking import FaceDetector
+from botstage.skills.testing import DictBoard
+from botstage.skills.track_face import TrackFace
+from botstage.skills.workers import Workers
 
 RATE_HZ = 30.0  # the webcam's frame rate: a frame a tick
 SEED = 1

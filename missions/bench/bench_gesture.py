@@ -17,7 +17,7 @@ each figure beside a baseline measured in the same run. Run with `botstage bench
 - **converter**: the chapter's converter (``gesture_teleop.py``, written here as the baseline:
   previous yaw and pitch starting at 0, ``int()`` of the changes and of the pitch, the home
   test ``-2 < int(pitch) < 2`` with no yaw change, ``round(..., 2)``, clamps by ``if/elif``)
-  against ``skills.gesture.GestureConverter`` on the same scripted hand motions, sampled as the
+  against ``botstage.skills.gesture.GestureConverter`` on the same scripted hand motions, sampled as the
   sketch publishes (2.5 Hz, float32 values): a slow tilt (0.5 degrees a sample), a slow turn
   (0.75 degrees a sample), a tilt at 1.6 degrees a sample, the speed clamped while the hand
   still turns (``step_size`` 0.05, a value the chapter's yaml allows), and a turn across the
@@ -43,15 +43,15 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from missions.bench.bench_serial import TARGET_P99_MS, Pty, bench_pty_floor, percentile
-from robots.drivers import rosserial_protocol as rp
-from robots.drivers.rosserial import BAUD, RosserialDriver
-from robots.emulators.imu_arduino import BUFFER_SIZE, IMU_TOPIC, TF_TOPIC, VECTOR3, HandScript, as_published
-from skills.gesture import GestureConfig, GestureConverter
+from botstage.missions.bench.bench_serial import TARGET_P99_MS, Pty, bench_pty_floor, percentile
+from botstage.robots.drivers import rosserial_protocol as rp
+from botstage.robots.drivers.rosserial import BAUD, RosserialDriver
+from botstage.robots.emulators.imu_arduino import BUFFER_SIZE, IMU_TOPIC, TF_TOPIC, VECTOR3, HandScript, as_published
+from botstage.skills.gesture import GestureConfig, GestureConverter
 
 LINE_RATE_BYTES = BAUD / 10  # 8N1: ten bits a byte
 TARGET_PARSER_RATIO = 100.0
-IMU_ID, TF_ID = 126, 125  # the sketch's publishers on an Uno (see robots.emulators.imu_arduino)
+IMU_ID, TF_ID = 126, 125  # the sketch's publishers on an Uno (see botstage.robots.emulators.imu_arduino)
 PERIOD_S = 0.4  # the sketch publishes at 2.5 Hz
 REST_SAMPLES = 3  # a second at rest before each motion (the reference; left out of the errors)
 

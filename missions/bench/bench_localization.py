@@ -17,7 +17,7 @@ and 4° off; and Chefbot (odometry + IMU, no laser) on a restaurant loop.
 The simulator's encoders count the wheels' turning, not the ground they covered (wheel slip),
 so odometry drifts as on a real floor.
 
-Run with ``botstage bench nav`` or ``python -m missions.bench.bench_localization`` (``--quick`` for one seed).
+Run with ``botstage bench nav`` or ``python -m botstage.missions.bench.bench_localization`` (``--quick`` for one seed).
 """
 
 from __future__ import annotations
@@ -31,20 +31,19 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from robots import PROFILES_DIR
-from robots.clock import SimClock
-from robots.gridmap import FREE, GridMap, load
-from robots.interfaces import LaserScan, Pose2D
-from robots.profile import Device, Profile, load_profile
-from robots.sim.backend import MAPS_DIR, SimBackend
-from robots.sim.world import World
-from skills.nav.controller import FollowerParams, PathFollower
-from skills.nav.costmap import inflated_costs
-from skills.nav.ekf import wrap
-from skills.nav.localization import Localizer
-from skills.nav.planner import Planner
-from skills.nav.scan_match import ScanMatcher
+from botstage.robots import PROFILES_DIR
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import FREE, GridMap, load
+from botstage.robots.interfaces import LaserScan, Pose2D
+from botstage.robots.profile import Device, Profile, load_profile
+from botstage.robots.sim.backend import MAPS_DIR, SimBackend
+from botstage.robots.sim.world import World
+from botstage.skills.nav.controller import FollowerParams, PathFollower
+from botstage.skills.nav.costmap import inflated_costs
+from botstage.skills.nav.ekf import wrap
+from botstage.skills.nav.localization import Localizer
+from botstage.skills.nav.planner import Planner
+from botstage.skills.nav.scan_match import ScanMatcher
 
 RATE_HZ = 10.0
 STILL_S = 10.0

@@ -70,17 +70,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-
-from missions import DEFAULT_MISSION
-from missions.monitor.control import Control
-from missions.monitor.hub import Hub
-from missions.monitor.observer import MonitorObserver
-from missions.monitor.server import start_monitor
-from missions.runner import RunResult, run
-from missions.session.errors import StopRun
+from botstage.missions import DEFAULT_MISSION
+from botstage.missions.monitor.control import Control
+from botstage.missions.monitor.hub import Hub
+from botstage.missions.monitor.observer import MonitorObserver
+from botstage.missions.monitor.server import start_monitor
+from botstage.missions.runner import RunResult, run
+from botstage.missions.session.errors import StopRun
 
 if TYPE_CHECKING:
-    from missions.session.session import RunSession
+    from botstage.missions.session.session import RunSession
 
 SEED = 1
 RATE_HZ = 10  # the entertainer's and the generated tree's

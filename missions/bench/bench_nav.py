@@ -26,10 +26,9 @@ import time
 from typing import Any
 
 import numpy as np
-
-from robots.gridmap import FREE, OCCUPIED, GridMap
-from skills.nav.costmap import inflated_costs
-from skills.nav.planner import Planner, Unreachable
+from botstage.robots.gridmap import FREE, OCCUPIED, GridMap
+from botstage.skills.nav.costmap import inflated_costs
+from botstage.skills.nav.planner import Planner, Unreachable
 
 EXPANSION_SAMPLES = 10  # plans whose expansions are counted (an exact Dijkstra each)
 
@@ -127,8 +126,8 @@ def bench_final_pose(goals: int, seed: int = 11) -> dict[str, Any]:
 
 def final_pose_run(goals: int, seed: int) -> tuple[dict[str, Any], np.ndarray]:
     """The Table 2 protocol once: its figures, and each goal's error (x cm, y cm, theta deg)."""
-    from missions.bench.navsim import NavSim
-    from skills.navigate import Navigate
+    from botstage.missions.bench.navsim import NavSim
+    from botstage.skills.navigate import Navigate
 
     sim = NavSim("museum", "peoplebot", "hall_centre", seed=seed)
     rng = np.random.default_rng(seed)
@@ -213,7 +212,7 @@ def main(quick: bool = False) -> list[dict[str, Any]]:
     results.append(bench_final_pose_seeds((12, 13) if quick else (12, 13, 14, 15, 16, 17, 18, 19), 10 if quick else 50))
     for result in results:
         print(json.dumps(result), flush=True)
-    from missions.bench import bench_localization  # pose drift over the 56 m loop: prints its own
+    from botstage.missions.bench import bench_localization  # pose drift over the 56 m loop: prints its own
 
     return results + bench_localization.main(quick=quick)
 

@@ -38,11 +38,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from robots.clock import SimClock
-from robots.drivers.chefbot_base import ChefbotBase, open_chefbot
-from robots.drivers.launchpad_protocol import LINE_RATE_BYTES, LineDecoder
-from robots.interfaces import Pose2D
-from robots.profile import load_profile, profile_path
+from botstage.robots.clock import SimClock
+from botstage.robots.drivers.chefbot_base import ChefbotBase, open_chefbot
+from botstage.robots.drivers.launchpad_protocol import LINE_RATE_BYTES, LineDecoder
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile, profile_path
 
 TARGET_RATIO = 100.0
 TARGET_P99_MS = 2.0

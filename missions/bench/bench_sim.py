@@ -15,11 +15,11 @@ import json
 import time
 from typing import Any
 
-from robots.clock import SimClock
-from robots.gridmap import load
-from robots.interfaces import Pose2D
-from robots.profile import load_profile
-from robots.sim.backend import MAPS_DIR, SimBackend
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import load
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import load_profile
+from botstage.robots.sim.backend import MAPS_DIR, SimBackend
 
 TARGET = 200.0  # sim seconds per wall second
 

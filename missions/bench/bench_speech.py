@@ -33,11 +33,10 @@ import wave
 from typing import Any, NamedTuple
 
 import numpy as np
+from botstage.skills.speech.embedding import EmbeddingRecognizer
+from botstage.skills.speech.recognizer import COMMANDS, CommandRecognizer, Recognizer
+from botstage.skills.speech.vad import find_utterances
 from scipy.signal import resample_poly
-
-from skills.speech.embedding import EmbeddingRecognizer
-from skills.speech.recognizer import COMMANDS, CommandRecognizer, Recognizer
-from skills.speech.vad import find_utterances
 
 SAY = {"PHOTO": "photo", "YES": "yes", "WHATSUP": "what's up", "CANCEL": "cancel", "CIAO": "ciao"}
 VOICES = (

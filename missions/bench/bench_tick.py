@@ -24,12 +24,11 @@ from typing import Any
 
 import py_trees
 import yaml
+from botstage.behaviors.engine import Engine
+from botstage.robots.clock import SimClock
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.registry import Registry
 from transitions.extensions.nesting import HierarchicalMachine
-
-from behaviors.engine import Engine
-from robots.clock import SimClock
-from skills.base import Outcome, Skill, SkillContext, SkillRun
-from skills.registry import Registry
 
 GROUPS, LEAVES = 10, 99  # 1 root + 10 groups + 990 leaves = 1,001 nodes
 TARGET = 1.2
@@ -267,8 +266,8 @@ NAV2_YAML = Path(__file__).with_name("nav2_navigate_to_pose.yaml")
 def _nav2_drive(trees: dict[str, Any], root: str, ticks: int) -> float:
     """Seconds per engine tick (the world's step not counted) of ``ticks`` ticks of the PeopleBot
     driving from the museum's entrance to exhibit_a under the tree: planning at 1 Hz, following."""
-    from behaviors.nav2.navigator import ERROR_CODE_PREFIXES
-    from missions.bench.navsim import NavSim
+    from botstage.behaviors.nav2.navigator import ERROR_CODE_PREFIXES
+    from botstage.missions.bench.navsim import NavSim
 
     sim = NavSim("museum", "peoplebot", "entrance", seed=3)
     engine = Engine(clock=sim.clock, interfaces={**sim.sim.devices, **sim.services.interfaces})
@@ -287,7 +286,7 @@ def _nav2_drive(trees: dict[str, Any], root: str, ticks: int) -> float:
 def bench_nav2(ticks: int, repeats: int) -> dict[str, Any]:
     """Nav2's NavigateToPose tree as Nav2 ships it (BT.CPP XML, imported) against the same tree
     written in botstage's YAML (missions/bench/nav2_navigate_to_pose.yaml), µs per tick on a robot."""
-    from behaviors.btcpp.to_spec import load_xml
+    from botstage.behaviors.btcpp.to_spec import load_xml
 
     row: dict[str, Any] = {"bench": "nav2_navigate_to_pose", "ticks_per_repeat": ticks, "repeats": repeats}
     if not NAV2_XML.exists():

@@ -38,10 +38,9 @@ from typing import Any
 import cv2
 import httpx
 import numpy as np
-
-from skills.outbox.outbox import Outbox
-from skills.outbox.settings import OutboxSettings
-from skills.outbox.store import UPLOADED
+from botstage.skills.outbox.outbox import Outbox
+from botstage.skills.outbox.settings import OutboxSettings
+from botstage.skills.outbox.store import UPLOADED
 
 TARGET_RATIO = 0.8
 PAPER_BYTES = 3_260_000  # the paper's 3.26 MB photo
@@ -108,7 +107,7 @@ def start_gallery_process(folder: Path) -> tuple[subprocess.Popen[bytes], str]:
     port = _free_port()
     env = {**os.environ, "PYTHONPATH": str(SOURCE)}
     env.pop("BOTSTAGE_GALLERY_TOKEN", None)
-    command = [sys.executable, "-m", "missions.cli", "gallery", "--port", str(port), "--dir", str(folder)]
+    command = [sys.executable, "-m", "botstage.missions.cli", "gallery", "--port", str(port), "--dir", str(folder)]
     command += ["--max-mb", "50"]
     folder.mkdir(parents=True)
     log = (folder.parent / "gallery.log").open("wb")  # its access log, out of the figures' way

@@ -3,7 +3,7 @@
 Two missions of 20,000 tree nodes, written to a temporary folder: 20,000 `wait` siblings in one
 sequence (the shape that once made checking cubic), and the same count spread over nested
 selectors, sequences, guards and timeouts with conditions, subtrees and a machine around them.
-Each row gives the check's time (the whole of `missions.check.check`: reading, YAML, the
+Each row gives the check's time (the whole of `botstage.missions.check.check`: reading, YAML, the
 mission's keys, building every node, machines, key usage), `yaml.safe_load` of the same file
 in the same run as the baseline, and their ratio. Target: under 5 s for 20,000 nodes.
 
@@ -20,8 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-
-from missions.check import check
+from botstage.missions.check import check
 
 NODES = 20_000
 TARGET_S = 5.0

@@ -57,22 +57,21 @@ from typing import Any
 
 import numpy as np
 import zenoh
-
-from missions import DEFAULT_MISSION
-from robots.clock import SimClock
-from robots.interfaces import LaserScan
-from robots.ros2 import attachment as attachments
-from robots.ros2 import readings, types
-from robots.ros2.node import Ros2Node
-from robots.ros2.topics import SENSOR_DATA
-from skills.base import SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.registry import Registry
-from skills.remote.host import SkillHost
-from skills.remote.protocol import Call, State, Step, TickReply, TickRequest, reply_fields, request_fields
-from skills.remote.proxy import remote_of
-from skills.remote.ros2_link import SERVICE_TYPE, SkillTickLink, serve_skill_host
-from skills.testing import DictBoard
+from botstage.missions import DEFAULT_MISSION
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import LaserScan
+from botstage.robots.ros2 import attachment as attachments
+from botstage.robots.ros2 import readings, types
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.topics import SENSOR_DATA
+from botstage.skills.base import SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.registry import Registry
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import Call, State, Step, TickReply, TickRequest, reply_fields, request_fields
+from botstage.skills.remote.proxy import remote_of
+from botstage.skills.remote.ros2_link import SERVICE_TYPE, SkillTickLink, serve_skill_host
+from botstage.skills.testing import DictBoard
 
 SOURCE = Path(__file__).resolve().parents[2]  # holds the `missions` package: the far side runs this very code
 DEPLOYMENT = SOURCE / "missions" / "deployments" / "peoplebot_five_computers.yaml"
@@ -232,7 +231,7 @@ class FarProcess:
 
     def __init__(self, endpoint: str, reply_bytes: int) -> None:
         env = {**os.environ, "PYTHONPATH": str(SOURCE)}
-        command = [sys.executable, "-m", "missions.bench.bench_zenoh", "far", endpoint, str(reply_bytes)]
+        command = [sys.executable, "-m", "botstage.missions.bench.bench_zenoh", "far", endpoint, str(reply_bytes)]
         self.process = subprocess.Popen(
             command, cwd=SOURCE, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
         )
@@ -534,7 +533,7 @@ def bench_stream(
 def _timed_command(arguments: list[str], folder: Path) -> tuple[float, dict[str, Any]]:
     """Run ``botstage ARGUMENTS --out FOLDER``; its wall time and the run's summary."""
     env = {**os.environ, "PYTHONPATH": str(SOURCE)}
-    command = [sys.executable, "-m", "missions.cli", *arguments, "--out", str(folder)]
+    command = [sys.executable, "-m", "botstage.missions.cli", *arguments, "--out", str(folder)]
     log = folder.with_suffix(".log")
     with log.open("wb") as output:
         began = time.perf_counter()

@@ -7,18 +7,18 @@ from __future__ import annotations
 import random
 from typing import Any
 
-from missions.services import RobotServices
-from robots import PROFILES_DIR
-from robots.clock import SimClock
-from robots.gridmap import GridMap
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.profile import Profile, load_profile
-from robots.sim.backend import SimBackend, map_path
-from skills.base import Outcome, Skill, SkillContext, SkillLogger
-from skills.execution import SkillExecution
-from skills.testing import DictBoard as Board
-from skills.workers import Workers
+from botstage.missions.services import RobotServices
+from botstage.robots import PROFILES_DIR
+from botstage.robots.clock import SimClock
+from botstage.robots.gridmap import GridMap
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, load_profile
+from botstage.robots.sim.backend import SimBackend, map_path
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution
+from botstage.skills.testing import DictBoard as Board
+from botstage.skills.workers import Workers
 
 MAPS: dict[str, GridMap] = {}
 

@@ -102,10 +102,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
-from scipy.signal import fftconvolve, resample_poly
-
-from missions.bench.bench_speech import (
+from botstage.missions.bench.bench_speech import (
     PAD,
     PHRASES,
     SAY,
@@ -119,9 +116,11 @@ from missions.bench.bench_speech import (
     speech_power,
     synthesise,
 )
-from skills.speech.embedding import CLASSES, Classifier, SpeechEmbedding, pooled, weights_path
-from skills.speech.recognizer import COMMANDS
-from skills.speech.vad import find_utterances
+from botstage.skills.speech.embedding import CLASSES, Classifier, SpeechEmbedding, pooled, weights_path
+from botstage.skills.speech.recognizer import COMMANDS
+from botstage.skills.speech.vad import find_utterances
+from scipy.optimize import minimize
+from scipy.signal import fftconvolve, resample_poly
 
 BASES = ("en-us", "en-gb", "en-gb-scotland", "en-gb-x-gbclan", "en-gb-x-rp", "en-gb-x-gbcwmd", "en-029", "en-us-nyc")
 VARIANTS = (

@@ -12,13 +12,24 @@ import signal
 from pathlib import Path
 
 import typer
-
-from missions.cli import backends, btcpp, certs, chat, distributed, gallery, maps, monitor, pictures, robots, run
-from missions.cli.bench import bench_app
-from missions.cli.run import scenario_app
-from missions.cli.serve import serve_app
-from missions.cli.speech import speech_app
-from robots import limits
+from botstage.missions.cli import (
+    backends,
+    btcpp,
+    certs,
+    chat,
+    distributed,
+    gallery,
+    maps,
+    monitor,
+    pictures,
+    robots,
+    run,
+)
+from botstage.missions.cli.bench import bench_app
+from botstage.missions.cli.run import scenario_app
+from botstage.missions.cli.serve import serve_app
+from botstage.missions.cli.speech import speech_app
+from botstage.robots import limits
 
 app = typer.Typer(
     no_args_is_help=True,

@@ -1,5 +1,5 @@
-"""`python -m missions.cli`: the command line from a checkout without the console script."""
+"""`python -m botstage.missions.cli`: the command line from a checkout without the console script."""
 
-from missions.cli import app
+from botstage.missions.cli import app
 
 app()

@@ -4,17 +4,16 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from botstage.missions.cli.common import _fail, _stderr, console
 from rich.table import Table
 
-from missions.cli.common import _fail, _stderr, console
-
 if TYPE_CHECKING:
-    from robots.backend import Backend, OpenRequest
+    from botstage.robots.backend import Backend, OpenRequest
 
 
 def backend_help() -> str:
     """The --backend help: every installed backend with its description."""
-    from robots.backend_registry import BackendRegistry
+    from botstage.robots.backend_registry import BackendRegistry
 
     registry = BackendRegistry.default()
     listed = "; ".join(f"{name} ({kind.description})" for name, kind in registry.items())
@@ -23,7 +22,7 @@ def backend_help() -> str:
 
 def observer_help() -> str:
     """The --observe help: every installed observer."""
-    from missions.session.plugins import observer_registry
+    from botstage.missions.session.plugins import observer_registry
 
     registry = observer_registry()
     listed = "; ".join(f"{name} ({registry.description(name)})" for name in registry)
@@ -32,8 +31,8 @@ def observer_help() -> str:
 
 def backend_options(items: list[str]) -> dict[str, Any]:
     """``--backend-opt key=value`` items as a mapping (values read as YAML scalars), or exit 2."""
-    from robots.backend import BackendError
-    from robots.backend_options import parse_assignments
+    from botstage.robots.backend import BackendError
+    from botstage.robots.backend_options import parse_assignments
 
     try:
         return parse_assignments(items)
@@ -43,7 +42,7 @@ def backend_options(items: list[str]) -> dict[str, Any]:
 
 def observers(names: list[str]) -> list[object]:
     """A new instance of each named observer, or exit 2 naming the unknown one."""
-    from missions.session.plugins import PluginError, observer_registry
+    from botstage.missions.session.plugins import PluginError, observer_registry
 
     registry = observer_registry()
     if names:  # a plugin that failed to load may be the one asked for: say why
@@ -57,11 +56,11 @@ def observers(names: list[str]) -> list[object]:
 def open_backend(name: str, request: OpenRequest, items: list[str], port: str | None, robot: str) -> Backend:
     """Backend ``name`` opened for ``request`` with the options of ``robot``'s profile, ``--port`` and
     ``--backend-opt``; or exit 2 with the reason (located in the profile when it is there)."""
-    from robots.backend import BackendError
-    from robots.backend_options import OptionSources
-    from robots.backend_registry import BackendRegistry
-    from robots.located_yaml import load_document
-    from robots.profile import profile_path
+    from botstage.robots.backend import BackendError
+    from botstage.robots.backend_options import OptionSources
+    from botstage.robots.backend_registry import BackendRegistry
+    from botstage.robots.located_yaml import load_document
+    from botstage.robots.profile import profile_path
 
     path = profile_path(robot)
     locations = load_document(path).locations if path is not None else None
@@ -82,7 +81,7 @@ def _options(described: dict[str, Any]) -> str:
 
 def backends() -> None:
     """List the backends `botstage run --backend` can open (built-in and plugins), with their options."""
-    from robots.backend_registry import BackendRegistry
+    from botstage.robots.backend_registry import BackendRegistry
 
     registry = BackendRegistry.default()
     table = Table("backend", "description", "clock", "options (--backend-opt, or the profile's backends:)", "from")

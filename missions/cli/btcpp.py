@@ -9,8 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import typer
-
-from missions.cli.common import _fail, _stderr, console, input_file, os_problem, output_file
+from botstage.missions.cli.common import _fail, _stderr, console, input_file, os_problem, output_file
 
 
 def import_(
@@ -22,8 +21,8 @@ def import_(
     world: str | None = typer.Option(None, help="the world (map) the mission names (default: none, fill it in)"),
 ) -> None:
     """Write the mission a BehaviorTree.CPP v4 XML file describes; errors as file:line:col, exit 1."""
-    from behaviors.btcpp.to_spec import load_xml
-    from missions.api.mission import dump_yaml
+    from botstage.behaviors.btcpp.to_spec import load_xml
+    from botstage.missions.api.mission import dump_yaml
 
     loaded = load_xml(tree)
     if loaded.data is None:
@@ -68,14 +67,14 @@ def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | No
     """How `run` runs a mission file: as it is, or, with ``--robot``/``--world`` (a tree file
     names neither) or ``--set`` values, as a mission with them set: checked first (problems at
     the file's lines), then written to the run folder as mission.yaml and run from there."""
-    from missions.runner import run
+    from botstage.missions.runner import run
 
     if robot is None and world is None and not values:
         return run
 
-    from missions.api.mission import Mission
-    from robots.profile import known_profiles, profile_path
-    from robots.sim.backend import known_maps, map_path
+    from botstage.missions.api.mission import Mission
+    from botstage.robots.profile import known_profiles, profile_path
+    from botstage.robots.sim.backend import known_maps, map_path
 
     # found from the working directory, as paths on a command line are; a bad one is a usage error
     for option, value, find, shipped, noun in (
@@ -125,8 +124,8 @@ def export(
     if fmt == "btlog":
         _export_btlog(source, output)
         return
-    from behaviors.btcpp.export import ExportError, export_loaded
-    from missions.check import check
+    from botstage.behaviors.btcpp.export import ExportError, export_loaded
+    from botstage.missions.check import check
 
     if source.is_dir():
         raise _fail(f"error: {source} is a folder: -f btcpp exports a mission file (-f btlog a run folder)", 2)
@@ -148,7 +147,7 @@ def export(
 
 
 def _export_btlog(folder: Path, output: Path | None) -> None:
-    from missions.groot2.btlog import BtlogError, write_btlog
+    from botstage.missions.groot2.btlog import BtlogError, write_btlog
 
     if not folder.is_dir():
         raise _fail(f"error: {folder} is not a run folder: -f btlog exports a finished run (runs/<mission>-<time>/)", 2)

@@ -15,16 +15,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-
-from missions.cli.common import _fail, console, input_file, number, output_dir
+from botstage.missions.cli.common import _fail, console, input_file, number, output_dir
 
 DAYS = number(ge=1, le=36500)
 
 
 def _deployment_processes(path: Path) -> dict[str, list[str]]:
     """Process name -> the hosts it is reached at (its ``host:`` and its listen endpoints' hosts)."""
-    from missions.deployment import check_deployment
-    from robots.ros2.security import ListenError, endpoint_host
+    from botstage.missions.deployment import check_deployment
+    from botstage.robots.ros2.security import ListenError, endpoint_host
 
     checked = check_deployment(path)
     if not checked.ok or checked.deployment is None:
@@ -66,8 +65,8 @@ def certs(
     ),
 ) -> None:
     """Make a certificate authority and a certificate per process for Zenoh's mutual TLS."""
-    from missions.deployment import OPERATOR
-    from robots.ros2.certs import CA_KEY, CertificateError, make_certificates, subject_alternative_names
+    from botstage.missions.deployment import OPERATOR
+    from botstage.robots.ros2.certs import CA_KEY, CertificateError, make_certificates, subject_alternative_names
 
     hosts = _deployment_processes(deployment) if deployment is not None else {}
     if deployment is not None:
@@ -103,6 +102,6 @@ def _say(line: str) -> None:
 
 
 def _hosts(extra: list[str]) -> list[str]:
-    from robots.ros2.certs import DEFAULT_HOSTS
+    from botstage.robots.ros2.certs import DEFAULT_HOSTS
 
     return list(dict.fromkeys([*DEFAULT_HOSTS, *extra]))

@@ -6,8 +6,7 @@ import sys
 from pathlib import Path
 
 import typer
-
-from missions.cli.common import NON_NEGATIVE, _fail, _stderr, console, no_special_files, output_dir
+from botstage.missions.cli.common import NON_NEGATIVE, _fail, _stderr, console, no_special_files, output_dir
 
 
 def chat(
@@ -31,11 +30,10 @@ def chat(
     """
     import random
 
+    from botstage.skills.chat.cache import load_brain
+    from botstage.skills.chat.chatbot import Chatbot
+    from botstage.skills.chat.persona import aiml_files
     from rich.markup import escape
-
-    from skills.chat.cache import load_brain
-    from skills.chat.chatbot import Chatbot
-    from skills.chat.persona import aiml_files
 
     brain = load_brain(aiml_files(alice, aiml), cache_dir)
     _stderr([str(problem) for problem in brain.problems] + [f"note: {note}" for note in brain.notes])

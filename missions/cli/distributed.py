@@ -15,15 +15,14 @@ from pathlib import Path
 from typing import Any
 
 import typer
-
-from missions.cli.common import NON_NEGATIVE, _fail, console
-from missions.cli.monitor import HOST_HELP, live_monitor
+from botstage.missions.cli.common import NON_NEGATIVE, _fail, console
+from botstage.missions.cli.monitor import HOST_HELP, live_monitor
 
 CONNECT_HELP = "the Zenoh endpoint of the deployment's router process, e.g. tcp/192.168.1.10:7447"
 
 
 def _check(deployment: Path) -> None:
-    from missions.deployment import check_deployment
+    from botstage.missions.deployment import check_deployment
 
     checked = check_deployment(deployment)
     if not checked.ok:
@@ -59,8 +58,8 @@ def process(
     monitor_host: str = typer.Option("127.0.0.1", help=HOST_HELP),
 ) -> None:
     """Run one process of a deployment (its robot, skills or mission) and serve it until Ctrl-C."""
-    from missions.cli.backends import backend_options
-    from missions.distributed.process import BackendGiven, DeploymentError, serve_process
+    from botstage.missions.cli.backends import backend_options
+    from botstage.missions.distributed.process import BackendGiven, DeploymentError, serve_process
 
     _check(deployment)
     given = BackendGiven(backend, backend_options(backend_opt), port)
@@ -97,11 +96,11 @@ def process_commands(
 ) -> dict[str, list[str]]:
     """Each process's ``serve process`` command, the router first: it listens on ``endpoint``, the others
     connect; ``monitor_port``: the mission's process serves the live monitor there."""
-    from missions.deployment import check_deployment
+    from botstage.missions.deployment import check_deployment
 
     checked = check_deployment(deployment)
     assert checked.deployment is not None, checked.problems
-    base = [sys.executable, "-m", "missions.cli", "serve", "process", str(deployment), "--out", str(out)]
+    base = [sys.executable, "-m", "botstage.missions.cli", "serve", "process", str(deployment), "--out", str(out)]
     base += ["--seed", str(seed)] if seed is not None else []
     base += ["--until", str(until)] if until is not None else []
     base += ["--certs", str(certs)] if certs is not None else []
@@ -116,8 +115,8 @@ def process_commands(
 def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
     """``folder`` with a certificate for each process and the operator (loopback hosts), made if missing;
     its authority kept. The operator's is teleop's: ``botstage teleop --certs OUT/certs/operator``."""
-    from missions.deployment import OPERATOR
-    from robots.ros2.certs import Credentials, make_certificates
+    from botstage.missions.deployment import OPERATOR
+    from botstage.robots.ros2.certs import Credentials, make_certificates
 
     missing = [name for name in [*processes, OPERATOR] if Credentials.in_folder(folder / name).missing()]
     if missing:
@@ -128,8 +127,8 @@ def _loopback_certificates(folder: Path, processes: list[str]) -> Path:
 def _deployment_overview(checked: Any, supervisor: Any, mission_port: int, port: int) -> Any:
     """The overview page on ``port``: the deployment's processes as the supervisor sees them, and
     the mission's run (its process's monitor on ``mission_port``, proxied)."""
-    from missions.monitor.server import MonitorError, start_overview
-    from missions.monitor.sources import remote_source
+    from botstage.missions.monitor.server import MonitorError, start_overview
+    from botstage.missions.monitor.sources import remote_source
 
     deployment = checked.deployment
 
@@ -182,8 +181,8 @@ def up(
     monitor_port: int = typer.Option(8470, help="that page's port (loopback)", min=0, max=65535),
 ) -> None:
     """Start every process of a deployment on this machine (loopback) and stop them together."""
-    from missions.deployment import check_deployment
-    from missions.distributed.supervisor import Supervisor
+    from botstage.missions.deployment import check_deployment
+    from botstage.missions.distributed.supervisor import Supervisor
 
     _check(deployment)
     checked = check_deployment(deployment)

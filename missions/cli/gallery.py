@@ -5,8 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-
-from missions.cli.common import POSITIVE, TCP_PORT, _fail, _stderr, console, output_dir
+from botstage.missions.cli.common import POSITIVE, TCP_PORT, _fail, _stderr, console, output_dir
 
 
 def gallery(
@@ -26,9 +25,9 @@ def gallery(
     """
     import os
 
-    from missions.gallery.server import GalleryError, serve
-    from missions.serving import is_loopback
-    from skills.outbox.settings import TOKEN_ENV
+    from botstage.missions.gallery.server import GalleryError, serve
+    from botstage.missions.serving import is_loopback
+    from botstage.skills.outbox.settings import TOKEN_ENV
 
     token = os.environ.get(TOKEN_ENV) or None
     if not is_loopback(host) and token is None:
@@ -59,8 +58,8 @@ def order(
     runs: Path = typer.Option(Path("runs"), help="where to look for running missions"),
 ) -> None:
     """Give a running delivery mission an order (through its run folder's inbox; see the README)."""
-    from missions.orders import find_inbox, post_order
-    from skills.delivery.inbox import OrderError
+    from botstage.missions.orders import find_inbox, post_order
+    from botstage.skills.delivery.inbox import OrderError
 
     try:
         inbox = find_inbox(run_folder, runs)

@@ -6,9 +6,8 @@ import json
 import math
 
 import typer
+from botstage.missions.cli.common import _fail, console
 from rich.table import Table
-
-from missions.cli.common import _fail, console
 
 
 def places(
@@ -16,9 +15,9 @@ def places(
     as_json: bool = typer.Option(False, "--json", help="print the places as JSON: {name: [x, y, yaw]}"),
 ) -> None:
     """List a map's named places (what `start:`, `goal:` and `gatherings: at:` may name), with the map's size."""
-    from robots.gridmap import MapError
-    from robots.gridmap import load as load_map
-    from robots.sim.backend import known_maps, map_path
+    from botstage.robots.gridmap import MapError
+    from botstage.robots.gridmap import load as load_map
+    from botstage.robots.sim.backend import known_maps, map_path
 
     where = map_path(world)
     if where is None:

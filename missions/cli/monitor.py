@@ -8,8 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import typer
-
-from missions.cli.common import _fail, console
+from botstage.missions.cli.common import _fail, console
 
 HOST_HELP = "address to listen on (default 127.0.0.1; any other needs BOTSTAGE_MONITOR_TOKEN)"
 
@@ -17,10 +16,10 @@ HOST_HELP = "address to listen on (default 127.0.0.1; any other needs BOTSTAGE_M
 @contextlib.contextmanager
 def live_monitor(host: str, port: int, paused: bool) -> Iterator[object]:
     """A monitor serving a run while it runs (yields its observer); stopped when the run is done."""
-    from missions.monitor.control import Control
-    from missions.monitor.hub import Hub
-    from missions.monitor.observer import MonitorObserver
-    from missions.monitor.server import PUSH_S, MonitorError, start_monitor
+    from botstage.missions.monitor.control import Control
+    from botstage.missions.monitor.hub import Hub
+    from botstage.missions.monitor.observer import MonitorObserver
+    from botstage.missions.monitor.server import PUSH_S, MonitorError, start_monitor
 
     hub = Hub()
     control = Control(hub, simulated=True)
@@ -52,9 +51,9 @@ def monitor(
     ticks (the tree at tick N is what `botstage tree --trace … --at N` prints); several sources
     (folders, and other processes' live monitors by their address) share one page, an overview
     of them all with each one's full monitor a click away. Ctrl-C stops it."""
-    from missions.monitor.replay import RunFolderError, load_run
-    from missions.monitor.server import MonitorError, create_app, start_monitor, start_overview, token_for
-    from missions.monitor.sources import Source, remote_source, source_name
+    from botstage.missions.monitor.replay import RunFolderError, load_run
+    from botstage.missions.monitor.server import MonitorError, create_app, start_monitor, start_overview, token_for
+    from botstage.missions.monitor.sources import Source, remote_source, source_name
 
     try:
         token = token_for(host)

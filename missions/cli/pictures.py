@@ -6,10 +6,9 @@ import sys
 from pathlib import Path
 
 import typer
-
-from behaviors.render import FORMATS
-from missions import DEFAULT_MISSION
-from missions.cli.common import NON_NEGATIVE, _fail, _stderr, input_file, os_problem, output_file
+from botstage.behaviors.render import FORMATS
+from botstage.missions import DEFAULT_MISSION
+from botstage.missions.cli.common import NON_NEGATIVE, _fail, _stderr, input_file, os_problem, output_file
 
 _FORMATS = ", ".join(FORMATS[:-1]) + f" or {FORMATS[-1]}"
 
@@ -24,7 +23,7 @@ def _picture(
     at: int | None,
     coverage: Path | None = None,
 ) -> None:
-    from missions.pictures import InvalidMission, PictureError, picture
+    from botstage.missions.pictures import InvalidMission, PictureError, picture
 
     def note(line: str) -> None:
         _stderr([line])

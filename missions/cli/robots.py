@@ -7,18 +7,17 @@ from pathlib import Path
 from typing import Any
 
 import typer
+from botstage.missions.cli.backends import backend_help
+from botstage.missions.cli.common import NON_NEGATIVE, POSITIVE, _fail, _stderr, console, number
+from botstage.robots.backend_registry import DEFAULT
 from rich.table import Table
-
-from missions.cli.backends import backend_help
-from missions.cli.common import NON_NEGATIVE, POSITIVE, _fail, _stderr, console, number
-from robots.backend_registry import DEFAULT
 
 RATE = number(gt=0, le=1000)
 
 
 def skills() -> None:
     """List the skills the registry finds (built-in and plugins) with their contracts."""
-    from skills.registry import Registry
+    from botstage.skills.registry import Registry
 
     registry = Registry.default()
     table = Table("skill", "inputs", "outputs", "outcomes", "from")
@@ -37,7 +36,7 @@ def skills() -> None:
 
 def nodes() -> None:
     """List the node kinds trees can use (built-in and plugins): what each takes and where it comes from."""
-    from behaviors.kinds import NodeKinds
+    from botstage.behaviors.kinds import NodeKinds
 
     kinds = NodeKinds.default()
     table = Table("kind", "written", "options", "description", "from")
@@ -56,7 +55,7 @@ def nodes() -> None:
 
 def _robot_place(profile_name: str, world: str, start: str):
     """A shipped or given profile, a map, and a start (a place of the map or "x,y,theta")."""
-    from missions.places import PlaceError, robot_place
+    from botstage.missions.places import PlaceError, robot_place
 
     try:
         return robot_place(profile_name, world, start)
@@ -85,11 +84,11 @@ def emulate(
     robots = {"launchpad": "chefbot", "nyboard": "bittle"}
     if board not in robots:
         raise _fail(f"error: unknown board {board!r}; boards: {', '.join(robots)}", 2)
-    from missions.fault_console import FAULTS, apply_fault
-    from robots.emulators.launchpad import LaunchpadEmulator
-    from robots.emulators.nyboard import NyBoardEmulator
-    from robots.emulators.pty_board import PtyBoard
-    from robots.sim.world import World
+    from botstage.missions.fault_console import FAULTS, apply_fault
+    from botstage.robots.emulators.launchpad import LaunchpadEmulator
+    from botstage.robots.emulators.nyboard import NyBoardEmulator
+    from botstage.robots.emulators.pty_board import PtyBoard
+    from botstage.robots.sim.world import World
 
     profile, grid, pose = _robot_place(robots[board], world, start)
     body = World(grid, profile, pose, seed)
@@ -133,10 +132,10 @@ def _gesture_teleop(
     """Drive ``backend``'s robot from the gesture IMU (its emulator unless ``imu_port``) until ``until`` or Ctrl-C."""
     import contextlib
 
-    from missions.teleop import drive_loop
-    from robots.drivers.rosserial import RosserialDriver
-    from robots.emulators.imu_arduino import ImuArduino
-    from skills.gesture import GestureCommands, load_config
+    from botstage.missions.teleop import drive_loop
+    from botstage.robots.drivers.rosserial import RosserialDriver
+    from botstage.robots.emulators.imu_arduino import ImuArduino
+    from botstage.skills.gesture import GestureCommands, load_config
 
     try:
         config = load_config(config_file) if config_file is not None else None
@@ -167,15 +166,14 @@ def _open_served(
     profile: Any, pose: Any, clock: Any, connect: list[str], domain_id: int, namespace: str, certs: Path | None
 ) -> Any:
     """The served robot, or exit with the reason (a bad endpoint, namespace or certificate: 2; nobody answering: 1)."""
+    from botstage.missions.teleop import open_served
     from pydantic import ValidationError
-
-    from missions.teleop import open_served
 
     security = None
     if certs is not None:
-        from missions.deployment import OPERATOR
-        from missions.distributed.security import SecurityError, credentials, secured
-        from robots.ros2.security import security_options
+        from botstage.missions.deployment import OPERATOR
+        from botstage.missions.distributed.security import SecurityError, credentials, secured
+        from botstage.robots.ros2.security import security_options
 
         try:
             found = credentials(certs, OPERATOR)  # the operator's folder, or the one `botstage certs` wrote
@@ -241,10 +239,10 @@ def teleop(
     """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits;
     or with the book's gesture controller (--input gesture): tilt forward to speed up, turn the hand to turn.
     The robot is opened here (--backend), or served by another process (--connect)."""
-    from missions.cli.backends import open_backend
-    from missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
-    from robots.backend import OpenRequest
-    from robots.clock import WallClock
+    from botstage.missions.cli.backends import open_backend
+    from botstage.missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
+    from botstage.robots.backend import OpenRequest
+    from botstage.robots.clock import WallClock
 
     if input_ not in ("keys", "gesture"):
         raise typer.BadParameter(f"{input_!r}: keys or gesture", param_hint="'--input'")

@@ -9,12 +9,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
-from rich.live import Live
-from rich.table import Table
-
-from missions import DEFAULT_MISSION
-from missions.cli.backends import backend_help, backend_options, observer_help, observers
-from missions.cli.common import (
+from botstage.missions import DEFAULT_MISSION
+from botstage.missions.cli.backends import backend_help, backend_options, observer_help, observers
+from botstage.missions.cli.common import (
     NON_NEGATIVE,
     _fail,
     _stderr,
@@ -26,12 +23,14 @@ from missions.cli.common import (
     output_dir,
     output_file,
 )
-from missions.cli.monitor import HOST_HELP, live_monitor
-from robots.backend_registry import DEFAULT
-from robots.limits import MAX_SECONDS
+from botstage.missions.cli.monitor import HOST_HELP, live_monitor
+from botstage.robots.backend_registry import DEFAULT
+from botstage.robots.limits import MAX_SECONDS
+from rich.live import Live
+from rich.table import Table
 
 if TYPE_CHECKING:
-    from missions.groot2.publisher import Groot2Publisher
+    from botstage.missions.groot2.publisher import Groot2Publisher
 
 UNTIL = number(gt=0, le=MAX_SECONDS)  # as `until:` in a mission file
 
@@ -41,8 +40,8 @@ scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them
 def validate(missions: list[Path] = typer.Argument(..., help="mission or deployment files to check")) -> None:
     """Check missions (or deployments, with their mission) without running them; errors as
     file:line:col, exit status 1 if any."""
-    from missions.check import check
-    from missions.deployment import check_deployment, is_deployment
+    from botstage.missions.check import check
+    from botstage.missions.deployment import check_deployment, is_deployment
 
     failed = False
     for path in missions:
@@ -61,9 +60,9 @@ def schema(
     ),
 ) -> None:
     """Print the JSON Schema of mission files (for editor completion)."""
-    from behaviors.kinds import NodeKinds
-    from missions.schema import json_schema
-    from skills.registry import Registry
+    from botstage.behaviors.kinds import NodeKinds
+    from botstage.missions.schema import json_schema
+    from botstage.skills.registry import Registry
 
     if builtin:
         schema = json_schema(Registry.builtin(), NodeKinds.builtin())
@@ -96,7 +95,7 @@ _LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 def _groot2(host: str, port: int) -> Groot2Publisher:
     """The Groot2 publisher for `run --groot2`, listening before the run starts."""
-    from missions.groot2.publisher import Groot2Error, Groot2Publisher
+    from botstage.missions.groot2.publisher import Groot2Error, Groot2Publisher
 
     if host not in _LOOPBACK:
         _stderr(
@@ -160,8 +159,8 @@ def run(
     Exit status: 0 success or time limit, 1 nothing ran (invalid mission, a file), 2 usage,
     3 the mission ended in failure, 4 the run stopped on an error, 130 interrupted.
     """
-    from missions.cli.btcpp import blackboard_values, runner_for, warn_unplaced  # blackboard_values: --set
-    from missions.runner import MissionInvalid, RunError
+    from botstage.missions.cli.btcpp import blackboard_values, runner_for, warn_unplaced  # blackboard_values: --set
+    from botstage.missions.runner import MissionInvalid, RunError
 
     run_mission = runner_for(robot, world, blackboard_values(set_values))
     warn_unplaced(mission, robot, world)
@@ -225,8 +224,8 @@ def test_scenarios(
 ) -> None:
     """Run scenario tests without pytest; a failure prints its readable report and keeps its run
     folder (the report names it). Exit 1 if any fails."""
-    from missions.coverage import Session, write
-    from missions.scenario_suite import SuiteError, run_suite, scenario_files
+    from botstage.missions.coverage import Session, write
+    from botstage.missions.scenario_suite import SuiteError, run_suite, scenario_files
 
     if coverage:  # checked before the suite runs, not after
         try:
@@ -287,7 +286,7 @@ def scenario_from_trace(
     ),
 ) -> None:
     """Turn a recorded run into a regression scenario that replays its skill outcomes."""
-    from missions.scenario import from_trace
+    from botstage.missions.scenario import from_trace
 
     try:
         spec = from_trace(trace, output, mission)

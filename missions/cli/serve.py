@@ -14,9 +14,8 @@ import time
 from typing import Any
 
 import typer
-
-from missions.cli.backends import backend_help
-from missions.cli.common import NON_NEGATIVE, _fail, number
+from botstage.missions.cli.backends import backend_help
+from botstage.missions.cli.common import NON_NEGATIVE, _fail, number
 
 serve_app = typer.Typer(
     no_args_is_help=True,
@@ -29,7 +28,7 @@ DOMAIN = number(ge=0)  # rmw_zenoh puts it in every key: any non-negative intege
 
 
 def _endpoints(values: list[str], option: str) -> list[str]:
-    from robots.ros2.endpoints import check_endpoint
+    from botstage.robots.ros2.endpoints import check_endpoint
 
     try:
         return [check_endpoint(value) for value in values]
@@ -78,16 +77,15 @@ def robot(
     watchdog time (0.5 s), the drive stops.
     """
     import zenoh
-
-    from missions.cli.backends import open_backend
-    from missions.cli.robots import _robot_place
-    from robots.backend import OpenRequest
-    from robots.backend_registry import BackendRegistry
-    from robots.ros2.endpoints import ROUTER_LISTEN
-    from robots.ros2.names import node_fqn
-    from robots.ros2.node import Ros2Node
-    from robots.ros2.robot_server import RobotServer, realtime_clock
-    from robots.ros2.topics import routes
+    from botstage.missions.cli.backends import open_backend
+    from botstage.missions.cli.robots import _robot_place
+    from botstage.robots.backend import OpenRequest
+    from botstage.robots.backend_registry import BackendRegistry
+    from botstage.robots.ros2.endpoints import ROUTER_LISTEN
+    from botstage.robots.ros2.names import node_fqn
+    from botstage.robots.ros2.node import Ros2Node
+    from botstage.robots.ros2.robot_server import RobotServer, realtime_clock
+    from botstage.robots.ros2.topics import routes
 
     listen = _endpoints(listen, "--listen") or [ROUTER_LISTEN]
     connect = _endpoints(connect, "--connect")

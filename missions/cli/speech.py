@@ -6,8 +6,7 @@ import sys
 from pathlib import Path
 
 import typer
-
-from missions.cli.common import _fail, _stderr
+from botstage.missions.cli.common import _fail, _stderr
 
 speech_app = typer.Typer(no_args_is_help=True, help="Speech: the listen skill's recogniser on WAV files.")
 
@@ -19,9 +18,9 @@ def speech_recognize(
     recognizer: str = typer.Option("embedding", help="for commands: embedding (the default) or pocketsphinx"),
 ) -> None:
     """Print FILE<TAB>COMMAND per file (`-` when nothing was recognised); in free mode FILE<TAB>TEXT."""
-    from skills.speech.recognizer import MODES, RECOGNIZERS, recognizer_named
-    from skills.speech.recording import recognize_recording
-    from skills.speech.wav import WavFormatError, read_wav
+    from botstage.skills.speech.recognizer import MODES, RECOGNIZERS, recognizer_named
+    from botstage.skills.speech.recording import recognize_recording
+    from botstage.skills.speech.wav import WavFormatError, read_wav
 
     if mode not in MODES:
         raise _fail(f"error: --mode must be one of {', '.join(MODES)}, got {mode!r}", 2)
@@ -69,7 +68,7 @@ def speech_train(
     """Train the command classifier on espeak-ng speech (needs espeak-ng); see missions/bench/train_speech.py."""
     import shutil
 
-    from missions.bench import train_speech
+    from botstage.missions.bench import train_speech
 
     if shutil.which("espeak-ng") is None:
         raise _fail("error: espeak-ng is missing: training makes its audio with it (apt-get install espeak-ng)", 1)

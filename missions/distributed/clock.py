@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from robots.ros2.node import Ros2Node
-from robots.ros2.qos import QoS, Reliability
-from robots.ros2.readings import clock_message
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.qos import QoS, Reliability
+from botstage.robots.ros2.readings import clock_message
 
 CLOCK_TOPIC = "/clock"
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"

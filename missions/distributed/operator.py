@@ -36,12 +36,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from robots.clock import SimClock
-from robots.ros2.attachment import Attachment
-from robots.ros2.node import Ros2Node
-from robots.ros2.robot_server import RobotServer, Waiter
-from robots.ros2.topics import Route
-from robots.ros2.watchdog import Trip
+from botstage.robots.clock import SimClock
+from botstage.robots.ros2.attachment import Attachment
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.robot_server import RobotServer, Waiter
+from botstage.robots.ros2.topics import Route
+from botstage.robots.ros2.watchdog import Trip
 
 IDLE_S = 0.05  # how often a robot nobody drives looks again whether someone does
 

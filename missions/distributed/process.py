@@ -34,37 +34,36 @@ from types import SimpleNamespace
 from typing import Any
 
 import zenoh
-
-from missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
-from missions.distributed.clock import ClockPublisher
-from missions.distributed.operator import Operator
-from missions.distributed.security import SecurityError, secured, session_options
-from missions.gallery.service import fill_counters
-from missions.runner import run
-from missions.session.errors import RunError
-from missions.session.plugins import service_registry
-from missions.session.result import RunResult
-from missions.session.session import RunSession
-from robots.backend import BackendError, BackendKind, BackendOptions, OpenRequest
-from robots.backend_registry import BackendRegistry, open_kind
-from robots.clock import SimClock, WallClock
-from robots.remote import values
-from robots.remote.backend import CONTROL, BackendControl, RemoteRobot
-from robots.remote.devices import DeviceHost
-from robots.remote.ros2_link import open_remote_devices, serve_devices
-from robots.ros2 import types
-from robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
-from robots.ros2.node import Ros2Node
-from robots.ros2.service import ServiceUnavailable
-from robots.ros2.topics import routes
-from skills.outbox.store import DB_NAME
-from skills.registry import Registry
-from skills.remote.actions import SkillActions
-from skills.remote.host import SkillHost
-from skills.remote.protocol import TickRequest
-from skills.remote.proxy import remote_of
-from skills.remote.ros2_link import SkillTickLink, serve_skill_host
-from skills.upload import UploadParams
+from botstage.missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
+from botstage.missions.distributed.clock import ClockPublisher
+from botstage.missions.distributed.operator import Operator
+from botstage.missions.distributed.security import SecurityError, secured, session_options
+from botstage.missions.gallery.service import fill_counters
+from botstage.missions.runner import run
+from botstage.missions.session.errors import RunError
+from botstage.missions.session.plugins import service_registry
+from botstage.missions.session.result import RunResult
+from botstage.missions.session.session import RunSession
+from botstage.robots.backend import BackendError, BackendKind, BackendOptions, OpenRequest
+from botstage.robots.backend_registry import BackendRegistry, open_kind
+from botstage.robots.clock import SimClock, WallClock
+from botstage.robots.remote import values
+from botstage.robots.remote.backend import CONTROL, BackendControl, RemoteRobot
+from botstage.robots.remote.devices import DeviceHost
+from botstage.robots.remote.ros2_link import open_remote_devices, serve_devices
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.service import ServiceUnavailable
+from botstage.robots.ros2.topics import routes
+from botstage.skills.outbox.store import DB_NAME
+from botstage.skills.registry import Registry
+from botstage.skills.remote.actions import SkillActions
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import TickRequest
+from botstage.skills.remote.proxy import remote_of
+from botstage.skills.remote.ros2_link import SkillTickLink, serve_skill_host
+from botstage.skills.upload import UploadParams
 
 log = logging.getLogger(__name__)
 

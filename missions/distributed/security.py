@@ -2,7 +2,7 @@
 
 ``botstage certs DIR --deployment FILE`` makes the authority, one folder per process and one for
 the operator (``DIR/operator``, see below); ``botstage serve process FILE NAME --certs DIR`` (and
-``botstage up FILE --secure``) then opens the process's session with ``robots.ros2.security``:
+``botstage up FILE --secure``) then opens the process's session with ``botstage.robots.ros2.security``:
 TLS links only, a peer without a certificate of that authority never connects, and Zenoh's access
 control (default deny) filters what the identities it does know may do. The policy is derived
 from the deployment, the same in every process, so nobody writes ACL rules by hand:
@@ -45,13 +45,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from missions.deployment import OPERATOR, CheckedDeployment
-from robots.remote.ros2_link import call_service, describe_service
-from robots.ros2.certs import PROCESS_CERT, Credentials
-from robots.ros2.names import fully_qualified_name
-from robots.ros2.security import SECURE_PROTOCOL, AccessPolicy, security_options
-from robots.ros2.topics import Direction, routes
-from skills.remote.ros2_link import service_name as skill_tick_service
+from botstage.missions.deployment import OPERATOR, CheckedDeployment
+from botstage.robots.remote.ros2_link import call_service, describe_service
+from botstage.robots.ros2.certs import PROCESS_CERT, Credentials
+from botstage.robots.ros2.names import fully_qualified_name
+from botstage.robots.ros2.security import SECURE_PROTOCOL, AccessPolicy, security_options
+from botstage.robots.ros2.topics import Direction, routes
+from botstage.skills.remote.ros2_link import service_name as skill_tick_service
 
 SKILL_ACTIONS = "skills"
 CLOCK = "/clock"
@@ -83,7 +83,7 @@ def command_topics(checked: CheckedDeployment) -> list[str]:
 
 def deployment_policy(checked: CheckedDeployment) -> AccessPolicy:
     """Who may call and publish what in this deployment (see the module's docstring)."""
-    from missions.distributed.process import lockstep_service  # it imports this module
+    from botstage.missions.distributed.process import lockstep_service  # it imports this module
 
     deployment = checked.deployment
     assert deployment is not None

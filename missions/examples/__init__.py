@@ -1,1 +1,1 @@
-"""Runnable examples of botstage's Python API: ``python -m missions.examples.<name>``."""
+"""Runnable examples of botstage's Python API: ``python -m botstage.missions.examples.<name>``."""

@@ -1,8 +1,8 @@
 """The Python front end by example: a mission built in Python, then checked, drawn and run.
 
-    python -m missions.examples.hello_api               # check, draw, run (folder under runs/)
-    python -m missions.examples.hello_api --out DIR     # ... leaving the run folder in DIR
-    python -m missions.examples.hello_api --yaml        # print it as a mission file instead
+    python -m botstage.missions.examples.hello_api               # check, draw, run (folder under runs/)
+    python -m botstage.missions.examples.hello_api --out DIR     # ... leaving the run folder in DIR
+    python -m botstage.missions.examples.hello_api --yaml        # print it as a mission file instead
 
 The robot says hello, then patrols lap after lap: each lap checks the battery (a condition),
 walks inside a time box (a timeout decorator) and counts itself; after three laps a preemption
@@ -16,7 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from missions.api import Condition, Mission, Sequence, Skill, StateMachine, Timeout, key
+from botstage.missions.api import Condition, Mission, Sequence, Skill, StateMachine, Timeout, key
 
 
 def build() -> Mission:
@@ -55,7 +55,9 @@ def build() -> Mission:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m missions.examples.hello_api", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m botstage.missions.examples.hello_api", description=__doc__.split("\n")[0]
+    )
     parser.add_argument("--out", type=Path, help="the run folder (default: runs/hello_api-<time>)")
     parser.add_argument("--yaml", action="store_true", help="print the mission as a YAML file and stop")
     args = parser.parse_args(argv)

@@ -28,11 +28,11 @@ from typing import Annotated, Any
 from fastapi import FastAPI, File, Form, Header, HTTPException, UploadFile
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 
-from missions.gallery.images import DEFAULT_MAX_PIXELS, BadImage, ImageTooLarge, check_image
-from missions.gallery.metadata import BadMetadata, parse_metadata
-from missions.gallery.page import render_page
-from missions.gallery.store import GalleryStore
-from skills.outbox.images import MEDIA_TYPES
+from botstage.missions.gallery.images import DEFAULT_MAX_PIXELS, BadImage, ImageTooLarge, check_image
+from botstage.missions.gallery.metadata import BadMetadata, parse_metadata
+from botstage.missions.gallery.page import render_page
+from botstage.missions.gallery.store import GalleryStore
+from botstage.skills.outbox.images import MEDIA_TYPES
 
 DEFAULT_MAX_BYTES = 20 * 2**20
 FORM_SLACK = 256 * 1024  # multipart boundaries, part headers and the metadata field

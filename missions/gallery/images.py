@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from skills.outbox.images import sniff
+from botstage.skills.outbox.images import sniff
 
 THUMB_WIDTH = 320
 DEFAULT_MAX_PIXELS = 40_000_000  # 40 megapixels: a 3-byte decode of at most 120 MB

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 from html import escape
 
-from missions.gallery.store import Photo
+from botstage.missions.gallery.store import Photo
 
 _STYLE = """
 body{font-family:system-ui,sans-serif;margin:2rem;background:#fafafa;color:#222}

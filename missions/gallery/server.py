@@ -16,9 +16,9 @@ from pathlib import Path
 
 import uvicorn
 
-from missions.gallery.app import DEFAULT_MAX_BYTES, create_app
-from missions.gallery.images import DEFAULT_MAX_PIXELS
-from missions.serving import ServerThread, app_config, bind, start_server
+from botstage.missions.gallery.app import DEFAULT_MAX_BYTES, create_app
+from botstage.missions.gallery.images import DEFAULT_MAX_PIXELS
+from botstage.missions.serving import ServerThread, app_config, bind, start_server
 
 _log = logging.getLogger("botstage.gallery")
 DEFAULT_HOST = "127.0.0.1"

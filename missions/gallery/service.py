@@ -11,9 +11,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from robots.clock import Clock
-from skills.outbox.service import Uploads
-from skills.outbox.settings import TOKEN_ENV
+from botstage.robots.clock import Clock
+from botstage.skills.outbox.service import Uploads
+from botstage.skills.outbox.settings import TOKEN_ENV
 
 # names a mission may list under `counters:` and get from the outbox (when no skill writes them)
 COUNTERS = ("photos_queued", "photos_uploaded", "photos_pending", "photos_rejected")
@@ -24,7 +24,7 @@ class RunGallery:
     port, same folder), to see that uploads wait and resume without losing or repeating a photo."""
 
     def __init__(self, folder: Path) -> None:
-        from missions.gallery.server import start_gallery  # FastAPI and uvicorn load only when used
+        from botstage.missions.gallery.server import start_gallery  # FastAPI and uvicorn load only when used
 
         self._start = start_gallery
         self.folder = folder

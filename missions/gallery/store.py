@@ -20,7 +20,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from skills.outbox.store import fsync_dir
+from botstage.skills.outbox.store import fsync_dir
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS photos (

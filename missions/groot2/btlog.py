@@ -27,12 +27,12 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from behaviors.engine import Engine
-from behaviors.trace import read_jsonl
-from missions.check import build_root, check, root_spec_path
-from missions.groot2.protocol import pack_transition
-from missions.groot2.tree import GrootTree
-from robots.clock import SimClock
+from botstage.behaviors.engine import Engine
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.check import build_root, check, root_spec_path
+from botstage.missions.groot2.protocol import pack_transition
+from botstage.missions.groot2.tree import GrootTree
+from botstage.robots.clock import SimClock
 
 MAGIC = b"BTCPP4-FileLogger2"
 PROTOCOL = 1

@@ -30,17 +30,16 @@ from typing import TYPE_CHECKING, Any
 
 import py_trees
 import zmq
+from botstage.behaviors.skill_behaviour import SkillBehaviour
+from botstage.behaviors.trace import jsonable
+from botstage.missions.groot2 import protocol as p
+from botstage.missions.groot2.tree import GrootTree, StatusBuffer
+from botstage.skills.base import Outcome
 from py_trees.common import Status
 
-from behaviors.skill_behaviour import SkillBehaviour
-from behaviors.trace import jsonable
-from missions.groot2 import protocol as p
-from missions.groot2.tree import GrootTree, StatusBuffer
-from skills.base import Outcome
-
 if TYPE_CHECKING:
-    from missions.session.result import RunResult
-    from missions.session.session import RunSession
+    from botstage.missions.session.result import RunResult
+    from botstage.missions.session.session import RunSession
 
 DEFAULT_PORT = 1667
 NODE = "groot2"  # the node name of its lines in the trace

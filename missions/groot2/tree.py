@@ -26,10 +26,9 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, get_args, get_origin
 
 import py_trees
-
-from behaviors.machine import Level, MachineBehaviour, MachinePlan
-from behaviors.skill_behaviour import KeyRef, SkillBehaviour
-from missions.groot2.protocol import FAILURE, IDLE, IDLE_FROM, PY_TREES, RUNNING, SUCCESS
+from botstage.behaviors.machine import Level, MachineBehaviour, MachinePlan
+from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
+from botstage.missions.groot2.protocol import FAILURE, IDLE, IDLE_FROM, PY_TREES, RUNNING, SUCCESS
 
 MAX_UID = 0xFFFF
 MACHINE_TAG = "StateMachine"

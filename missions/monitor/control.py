@@ -23,17 +23,16 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import py_trees
-
-from behaviors.blackboard import normalise_key
-from behaviors.machine import MachineBehaviour
-from behaviors.skill_behaviour import SkillBehaviour
-from missions.monitor.hub import OPERATOR, Hub
-from missions.steering import ESTOP, ESTOP_RELEASED, TELEOP_ENDED, drive_one_step, stop_everything, teleop_note
-from skills.base import Outcome, Skill, check_type
-from skills.expression import Expression, ExpressionError, compile_expression
+from botstage.behaviors.blackboard import normalise_key
+from botstage.behaviors.machine import MachineBehaviour
+from botstage.behaviors.skill_behaviour import SkillBehaviour
+from botstage.missions.monitor.hub import OPERATOR, Hub
+from botstage.missions.steering import ESTOP, ESTOP_RELEASED, TELEOP_ENDED, drive_one_step, stop_everything, teleop_note
+from botstage.skills.base import Outcome, Skill, check_type
+from botstage.skills.expression import Expression, ExpressionError, compile_expression
 
 if TYPE_CHECKING:
-    from missions.session.session import RunSession
+    from botstage.missions.session.session import RunSession
 
 NODE = OPERATOR
 BREAK_KINDS = ("state", "node", "transition", "condition")

@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from missions.transcript import ROLES
+from botstage.missions.transcript import ROLES
 
 OPERATOR = "monitor"  # the node name the operator's actions carry in the trace
 TIMELINE = 5_000  # entries a page can scroll back through

@@ -14,18 +14,17 @@ from collections.abc import Mapping
 from typing import IO, TYPE_CHECKING, Any
 
 import cv2
-
-from behaviors.render import describe, to_plain
-from missions.monitor.control import NODE, Control
-from missions.monitor.hub import Hub
-from missions.monitor.robot_view import POSES_FILE, POSES_HEADER, SAMPLE_S, pose_row, poses, robot_sample
+from botstage.behaviors.render import describe, to_plain
+from botstage.missions.monitor.control import NODE, Control
+from botstage.missions.monitor.hub import Hub
+from botstage.missions.monitor.robot_view import POSES_FILE, POSES_HEADER, SAMPLE_S, pose_row, poses, robot_sample
 
 FRAME_S = 0.2  # camera frames for the teleop view, at most 5 a second
 POSE_EVERY_S = 0.2  # poses.csv: a row per this much mission time at most (18,000 rows an hour)
 
 if TYPE_CHECKING:
-    from missions.session.result import RunResult
-    from missions.session.session import RunSession
+    from botstage.missions.session.result import RunResult
+    from botstage.missions.session.session import RunSession
 
 
 class WatchedDisplay:

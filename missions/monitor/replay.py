@@ -12,16 +12,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from behaviors.render import Item, render, statuses_at, to_plain
-from behaviors.trace import read_jsonl
-from missions.check import check, describe_part
-from missions.monitor.hub import Hub, type_name
-from missions.monitor.robot_view import POSES_FILE, read_poses
-from robots.gridmap import GridMap
-from robots.gridmap import load as load_map
-from robots.sim.backend import map_path
-from skills.display import DEFAULT as DEFAULT_LAYOUT
-from skills.display import LAYOUTS
+from botstage.behaviors.render import Item, render, statuses_at, to_plain
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.check import check, describe_part
+from botstage.missions.monitor.hub import Hub, type_name
+from botstage.missions.monitor.robot_view import POSES_FILE, read_poses
+from botstage.robots.gridmap import GridMap
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.sim.backend import map_path
+from botstage.skills.display import DEFAULT as DEFAULT_LAYOUT
+from botstage.skills.display import LAYOUTS
 
 LAYOUT_KEY = "layout"  # the display skill's default key (the report reads the same)
 

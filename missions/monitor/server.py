@@ -25,15 +25,14 @@ import os
 from importlib import resources
 from typing import Any
 
+from botstage.missions.monitor.control import Control, ControlError, MalformedCommand
+from botstage.missions.monitor.hub import Hub
+from botstage.missions.monitor.replay import RecordedRun
+from botstage.missions.monitor.robot_view import map_info, map_png
+from botstage.missions.monitor.sources import ProcessesView, Source, create_overview_app, summary
+from botstage.missions.serving import ServerThread, app_config, bind, is_loopback, start_server
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
-
-from missions.monitor.control import Control, ControlError, MalformedCommand
-from missions.monitor.hub import Hub
-from missions.monitor.replay import RecordedRun
-from missions.monitor.robot_view import map_info, map_png
-from missions.monitor.sources import ProcessesView, Source, create_overview_app, summary
-from missions.serving import ServerThread, app_config, bind, is_loopback, start_server
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8470
@@ -41,7 +40,7 @@ TOKEN_ENV = "BOTSTAGE_MONITOR_TOKEN"
 PUSH_S = 0.05  # the pages hear of a change within this (p99 well under the 200 ms wanted)
 KEEPALIVE_S = 15.0
 READY_WAIT_S = 20.0  # how long /api/info and /api/structure wait for the run to be built
-_STATIC = resources.files("missions.monitor") / "static"
+_STATIC = resources.files("botstage.missions.monitor") / "static"
 
 
 class MonitorError(Exception):

@@ -23,16 +23,15 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import httpx
+from botstage.missions.monitor.hub import Hub
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, RedirectResponse, Response, StreamingResponse
 from starlette.background import BackgroundTask
 
-from missions.monitor.hub import Hub
-
 SUMMARY_EVENTS = 8  # the newest timeline entries an overview card shows
 PROXY_TIMEOUT_S = 10.0
 _FORWARDED = ("authorization", "content-type", "accept", "last-event-id")
-_STATIC = resources.files("missions.monitor") / "static"
+_STATIC = resources.files("botstage.missions.monitor") / "static"
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
 ProcessesView = Callable[[], list[dict[str, Any]]]

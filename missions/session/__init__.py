@@ -1,12 +1,12 @@
 """A run of a mission as a session: phases, observers of the run, and the services it opens."""
 
-from missions.session.errors import MissionInvalid, RunError, StopRun
-from missions.session.observer import RunObserver
-from missions.session.plugins import PluginRegistry, observer_registry, service_registry
-from missions.session.progress import Progress, ProgressCallback, ProgressObserver, running_skills
-from missions.session.result import WALL_CLOCK_FIELDS, RunResult
-from missions.session.service import RunService
-from missions.session.session import RunSession, build, run_folder
+from botstage.missions.session.errors import MissionInvalid, RunError, StopRun
+from botstage.missions.session.observer import RunObserver
+from botstage.missions.session.plugins import PluginRegistry, observer_registry, service_registry
+from botstage.missions.session.progress import Progress, ProgressCallback, ProgressObserver, running_skills
+from botstage.missions.session.result import WALL_CLOCK_FIELDS, RunResult
+from botstage.missions.session.service import RunService
+from botstage.missions.session.session import RunSession, build, run_folder
 
 __all__ = [
     "WALL_CLOCK_FIELDS",

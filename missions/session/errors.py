@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from missions.loader import Problem
+from botstage.missions.loader import Problem
 
 
 class MissionInvalid(Exception):

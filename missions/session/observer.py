@@ -21,10 +21,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
-from missions.session.errors import StopRun
+from botstage.missions.session.errors import StopRun
 
 if TYPE_CHECKING:
-    from behaviors.trace import Trace
+    from botstage.behaviors.trace import Trace
 
 HOOKS = ("started", "event", "before_tick", "after_tick", "finished")
 

@@ -7,13 +7,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from missions.session.summary import artefacts
-from missions.transcript import Transcriber, write_transcript
+from botstage.missions.session.summary import artefacts
+from botstage.missions.transcript import Transcriber, write_transcript
 
 if TYPE_CHECKING:
-    from behaviors.engine import Engine
-    from missions.session.result import RunResult
-    from missions.session.session import RunSession
+    from botstage.behaviors.engine import Engine
+    from botstage.missions.session.result import RunResult
+    from botstage.missions.session.session import RunSession
 
 
 class BackendObserver:
@@ -61,7 +61,7 @@ class ReportObserver:
     name = "report"
 
     def finished(self, session: RunSession, result: RunResult) -> None:
-        from missions.report import write_report  # matplotlib and friends load only when reporting
+        from botstage.missions.report import write_report  # matplotlib and friends load only when reporting
 
         summary = result.summary
         summary["artefacts"] = artefacts(session.folder, also=["report.html"])

@@ -21,18 +21,18 @@ import importlib
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from missions.session.observer import HOOKS
-from robots.plugins import PluginProblem, discover
+from botstage.missions.session.observer import HOOKS
+from botstage.robots.plugins import PluginProblem, discover
 
 OBSERVERS_GROUP = "botstage.observers"
 SERVICES_GROUP = "botstage.services"
-BUILTIN_OBSERVERS = ("console = missions.session.console:ConsoleLog",)
+BUILTIN_OBSERVERS = ("console = botstage.missions.session.console:ConsoleLog",)
 BUILTIN_SERVICES = (
-    "robot = missions.session.services:RobotService",
-    "uploads = missions.session.services:UploadsService",
-    "files = missions.session.services:FilesService",
-    "orders = missions.session.services:OrdersService",
-    "gesture = missions.session.services:GestureService",
+    "robot = botstage.missions.session.services:RobotService",
+    "uploads = botstage.missions.session.services:UploadsService",
+    "files = botstage.missions.session.services:FilesService",
+    "orders = botstage.missions.session.services:OrdersService",
+    "gesture = botstage.missions.session.services:GestureService",
 )
 
 Factory = Callable[[], Any]

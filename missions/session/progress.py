@@ -8,13 +8,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import py_trees
+from botstage.behaviors.machine import MachineBehaviour
+from botstage.behaviors.skill_behaviour import SkillBehaviour
 from py_trees.common import Status
 
-from behaviors.machine import MachineBehaviour
-from behaviors.skill_behaviour import SkillBehaviour
-
 if TYPE_CHECKING:
-    from missions.session.session import RunSession
+    from botstage.missions.session.session import RunSession
 
 
 @dataclass

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
-    from missions.session.session import RunSession
+    from botstage.missions.session.session import RunSession
 
 
 class RunService(Protocol):

@@ -9,15 +9,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from missions.gallery.service import fill_counters, run_uploads
-from missions.services import RobotServices
-from skills.delivery.inbox import OrderInbox
-from skills.files import RunFiles
+from botstage.missions.gallery.service import fill_counters, run_uploads
+from botstage.missions.services import RobotServices
+from botstage.skills.delivery.inbox import OrderInbox
+from botstage.skills.files import RunFiles
 
 if TYPE_CHECKING:
-    from missions.session.result import RunResult
-    from missions.session.session import RunSession
-    from skills.outbox.service import Uploads
+    from botstage.missions.session.result import RunResult
+    from botstage.missions.session.session import RunSession
+    from botstage.skills.outbox.service import Uploads
 
 
 class RobotService:
@@ -116,7 +116,7 @@ class GestureService:
         self.glove: Any = None
 
     def open(self, session: RunSession) -> Mapping[str, Any]:
-        from missions.gesture_glove import glove_for
+        from botstage.missions.gesture_glove import glove_for
 
         self.glove = glove_for(session.clock)
         return {"gesture": self.glove}

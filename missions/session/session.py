@@ -21,38 +21,37 @@ from pathlib import Path
 from typing import IO, Any
 
 import py_trees
-from py_trees.common import Status
-
-from behaviors.engine import Engine
-from behaviors.kinds import NodeKinds
-from behaviors.suggest import did_you_mean
-from behaviors.trace import Trace, jsonable
-from missions.check import Checked, build_root, check, root_spec_path, start_pose
-from missions.schema import Mission
-from missions.session.ending import SigtermLatch, outcome
-from missions.session.errors import MissionInvalid, RunError, StopRun
-from missions.session.observer import Hooks
-from missions.session.observers import (
+from botstage.behaviors.engine import Engine
+from botstage.behaviors.kinds import NodeKinds
+from botstage.behaviors.suggest import did_you_mean
+from botstage.behaviors.trace import Trace, jsonable
+from botstage.missions.check import Checked, build_root, check, root_spec_path, start_pose
+from botstage.missions.schema import Mission
+from botstage.missions.session.ending import SigtermLatch, outcome
+from botstage.missions.session.errors import MissionInvalid, RunError, StopRun
+from botstage.missions.session.observer import Hooks
+from botstage.missions.session.observers import (
     BackendObserver,
     BeforeTickHook,
     ClockObserver,
     ReportObserver,
     TranscriptObserver,
 )
-from missions.session.plugins import PluginError, PluginRegistry, service_registry
-from missions.session.result import RunResult
-from missions.session.summary import SummaryFileObserver, SummaryObserver
-from robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest, ScriptedWalk
-from robots.backend_options import OptionSources, resolve
-from robots.backend_registry import DEFAULT, BackendRegistry, open_kind
-from robots.clock import Clock, SimClock, WallClock
-from robots.gridmap import GridMap
-from robots.gridmap import load as load_map
-from robots.interfaces import Pose2D
-from robots.located_yaml import Locations, Problem
-from robots.profile import Profile, load_profile, profile_path
-from robots.sim.backend import known_maps, map_path
-from skills.registry import Registry
+from botstage.missions.session.plugins import PluginError, PluginRegistry, service_registry
+from botstage.missions.session.result import RunResult
+from botstage.missions.session.summary import SummaryFileObserver, SummaryObserver
+from botstage.robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest, ScriptedWalk
+from botstage.robots.backend_options import OptionSources, resolve
+from botstage.robots.backend_registry import DEFAULT, BackendRegistry, open_kind
+from botstage.robots.clock import Clock, SimClock, WallClock
+from botstage.robots.gridmap import GridMap
+from botstage.robots.gridmap import load as load_map
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.located_yaml import Locations, Problem
+from botstage.robots.profile import Profile, load_profile, profile_path
+from botstage.robots.sim.backend import known_maps, map_path
+from botstage.skills.registry import Registry
+from py_trees.common import Status
 
 DONE = (Status.SUCCESS, Status.FAILURE)
 

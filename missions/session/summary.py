@@ -14,11 +14,11 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from behaviors.trace import jsonable
+from botstage.behaviors.trace import jsonable
 
 if TYPE_CHECKING:
-    from missions.session.result import RunResult
-    from missions.session.session import RunSession
+    from botstage.missions.session.result import RunResult
+    from botstage.missions.session.session import RunSession
 
 FILE = "summary.json"
 CORE = ("mission", "robot", "backend", "seed", "outcome", "reason", "sim_time_s", "wall_time_s", "ticks")

@@ -14,13 +14,13 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from robots.backend import Fault
-from robots.clock import Clock
-from robots.drivers.bittle_base import NYBOARD, open_bittle
-from robots.drivers.chefbot_base import LAUNCHPAD, open_chefbot
-from robots.gridmap import GridMap
-from robots.interfaces import Pose2D
-from robots.profile import Profile
+from botstage.robots.backend import Fault
+from botstage.robots.clock import Clock
+from botstage.robots.drivers.bittle_base import NYBOARD, open_bittle
+from botstage.robots.drivers.chefbot_base import LAUNCHPAD, open_chefbot
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile
 
 DRIVERS: dict[str, Callable[..., Any]] = {LAUNCHPAD: open_chefbot, NYBOARD: open_bittle}  # board -> opener
 BOARD_NAMES = {LAUNCHPAD: "Launchpad", NYBOARD: "NyBoard"}

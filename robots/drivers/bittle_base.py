@@ -35,12 +35,12 @@ from collections import Counter, deque
 from collections.abc import Callable
 from typing import Any
 
-from robots.clock import Clock
-from robots.drivers import opencat_protocol as opencat
-from robots.drivers.serial_link import RateLimitedLog, SerialLink
-from robots.gaits import Direction, GaitChoice, GaitOdometry, Gaits, choose, motion_of
-from robots.interfaces import BatteryState, OdometryReading, Pose2D
-from robots.profile import Profile
+from botstage.robots.clock import Clock
+from botstage.robots.drivers import opencat_protocol as opencat
+from botstage.robots.drivers.serial_link import RateLimitedLog, SerialLink
+from botstage.robots.gaits import Direction, GaitChoice, GaitOdometry, Gaits, choose, motion_of
+from botstage.robots.interfaces import BatteryState, OdometryReading, Pose2D
+from botstage.robots.profile import Profile
 
 log = logging.getLogger(__name__)
 

@@ -38,10 +38,10 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
-from robots.clock import Clock
-from robots.drivers.diff_odometry import DiffOdometry
-from robots.drivers.launchpad import LaunchpadDriver
-from robots.drivers.launchpad_protocol import (
+from botstage.robots.clock import Clock
+from botstage.robots.drivers.diff_odometry import DiffOdometry
+from botstage.robots.drivers.launchpad import LaunchpadDriver
+from botstage.robots.drivers.launchpad_protocol import (
     ENCODER_BITS,
     BatteryVolts,
     BoardTime,
@@ -53,10 +53,10 @@ from robots.drivers.launchpad_protocol import (
     micros_delta,
     wrap_delta,
 )
-from robots.drivers.serial_link import RateLimitedLog
-from robots.drivers.wheel_control import WheelController, WheelSpeed, wheel_targets
-from robots.interfaces import BatteryState, ImuReading, OdometryReading, Pose2D, SonarReading
-from robots.profile import Profile
+from botstage.robots.drivers.serial_link import RateLimitedLog
+from botstage.robots.drivers.wheel_control import WheelController, WheelSpeed, wheel_targets
+from botstage.robots.interfaces import BatteryState, ImuReading, OdometryReading, Pose2D, SonarReading
+from botstage.robots.profile import Profile
 
 log = logging.getLogger(__name__)
 

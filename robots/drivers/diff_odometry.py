@@ -11,8 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from robots.interfaces import Pose2D, Twist2D
+from botstage.robots.interfaces import Pose2D, Twist2D
 
 
 class DiffOdometry:

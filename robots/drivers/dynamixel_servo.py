@@ -74,9 +74,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import serial
+from botstage.robots.drivers.serial_link import RateLimitedLog
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
-
-from robots.drivers.serial_link import RateLimitedLog
 
 try:
     from termios import error as TermiosError

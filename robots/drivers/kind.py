@@ -6,10 +6,9 @@ every other robot the board that drives its base (``SerialBackend``)."""
 
 from __future__ import annotations
 
+from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
+from botstage.robots.drivers.launchpad_protocol import BAUD
 from pydantic import Field
-
-from robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
-from robots.drivers.launchpad_protocol import BAUD
 
 
 class HardwareOptions(BackendOptions):
@@ -28,8 +27,8 @@ class HardwareKind(BackendKind):
     Options = HardwareOptions
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
-        from robots.drivers.backend import SerialBackend  # pyserial loads only when used
-        from robots.drivers.pan_head import PanHeadBackend, pan_only
+        from botstage.robots.drivers.backend import SerialBackend  # pyserial loads only when used
+        from botstage.robots.drivers.pan_head import PanHeadBackend, pan_only
 
         assert isinstance(options, HardwareOptions)
         if pan_only(request.profile):  # the face tracker: its servo on the port, its webcam on the PC

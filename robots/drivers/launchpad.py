@@ -11,8 +11,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from robots.drivers.launchpad_protocol import BAUD, RESET_COMMAND, LineDecoder, speed_command
-from robots.drivers.serial_link import Listener, SerialLink
+from botstage.robots.drivers.launchpad_protocol import BAUD, RESET_COMMAND, LineDecoder, speed_command
+from botstage.robots.drivers.serial_link import Listener, SerialLink
 
 ZERO = speed_command(0, 0)
 

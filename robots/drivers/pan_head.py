@@ -18,12 +18,12 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from robots.backend import Fault
-from robots.clock import Clock
-from robots.drivers.dynamixel_servo import BAUD, DynamixelError, DynamixelServo
-from robots.gridmap import GridMap
-from robots.interfaces import Pose2D
-from robots.profile import Profile, ServoJoint
+from botstage.robots.backend import Fault
+from botstage.robots.clock import Clock
+from botstage.robots.drivers.dynamixel_servo import BAUD, DynamixelError, DynamixelServo
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, ServoJoint
 
 DYNAMIXEL = "dynamixel"  # a profile's pan on this hardware is a Dynamixel the SDK speaks to
 USB_CAM = "usb_cam"  # a profile's camera on this hardware is a webcam OpenCV opens on the PC
@@ -106,7 +106,7 @@ class PanHeadBackend:
         self.camera: Any = None
         spec = profile.interfaces.get("camera")
         if spec is not None and spec.hardware == USB_CAM and camera is not None:
-            from robots.drivers.video_camera import VideoCaptureCamera  # OpenCV loads only with a camera
+            from botstage.robots.drivers.video_camera import VideoCaptureCamera  # OpenCV loads only with a camera
 
             source: int | str = int(camera) if camera.isdigit() else camera
             try:

@@ -31,7 +31,7 @@ What the host does, as SerialClient does it:
   others. The latest message of each topic is kept (``latest``; ``orientation`` for the
   gesture controller's ``imu_data``).
 - **Device logs** (topic 7, ``rosserial_msgs/Log``) go to Python logging (logger
-  ``robots.drivers.rosserial.device``) at their level; **parameter requests** (topic 6) are
+  ``botstage.robots.drivers.rosserial.device``) at their level; **parameter requests** (topic 6) are
   answered from ``params`` (ints, floats or strings; a missing one is logged and not answered,
   as SerialClient does).
 - **Sending** to a device's subscriber (``publish``) checks the type and the device's buffer
@@ -56,10 +56,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from botstage.robots.drivers import rosserial_protocol as rp
+from botstage.robots.drivers.serial_link import RateLimitedLog, SerialLink
 from rosbags.typesys.store import Typestore
-
-from robots.drivers import rosserial_protocol as rp
-from robots.drivers.serial_link import RateLimitedLog, SerialLink
 
 log = logging.getLogger(__name__)
 device_log = logging.getLogger(__name__ + ".device")

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from robots.profile import Base, WheelPid
+from botstage.robots.profile import Base, WheelPid
 
 
 def wheel_targets(v: float, w: float, base: Base) -> tuple[float, float]:

@@ -91,7 +91,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from robots.drivers.dynamixel_servo import (
+from botstage.robots.drivers.dynamixel_servo import (
     ACTION,
     ADDR_ALARM_LED,
     ADDR_BAUD,
@@ -140,7 +140,7 @@ from robots.drivers.dynamixel_servo import (
     WRITE,
     checksum,
 )
-from robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
+from botstage.robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
 
 __all__ = [
     "DEFAULT_TABLE",

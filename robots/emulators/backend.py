@@ -17,21 +17,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from robots.backend import Fault, ScriptedWalk
-from robots.clock import Clock
-from robots.drivers.backend import SerialBackend, board_of
-from robots.drivers.bittle_base import NYBOARD
-from robots.drivers.chefbot_base import LAUNCHPAD
-from robots.emulators.launchpad import LaunchpadEmulator
-from robots.emulators.nyboard import NyBoardEmulator
-from robots.gridmap import GridMap
-from robots.interfaces import LaserScan, Pose2D
-from robots.profile import Profile
-from robots.sim.backend import populated_world
-from robots.sim.devices import SimCamera, SimLaser, SimMicrophone, SimSpeaker
-from robots.sim.trajectory import Trajectory
-from robots.sim.voices import Voices
+from botstage.robots.backend import Fault, ScriptedWalk
+from botstage.robots.clock import Clock
+from botstage.robots.drivers.backend import SerialBackend, board_of
+from botstage.robots.drivers.bittle_base import NYBOARD
+from botstage.robots.drivers.chefbot_base import LAUNCHPAD
+from botstage.robots.emulators.launchpad import LaunchpadEmulator
+from botstage.robots.emulators.nyboard import NyBoardEmulator
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import LaserScan, Pose2D
+from botstage.robots.profile import Profile
+from botstage.robots.sim.backend import populated_world
+from botstage.robots.sim.devices import SimCamera, SimLaser, SimMicrophone, SimSpeaker
+from botstage.robots.sim.trajectory import Trajectory
+from botstage.robots.sim.voices import Voices
 
 
 class _LockedLaser:

@@ -60,9 +60,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from robots.drivers import rosserial_protocol as rp
-from robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
+from botstage.robots.drivers import rosserial_protocol as rp
+from botstage.robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
 
 __all__ = [
     "DEFAULT_KEYFRAMES",

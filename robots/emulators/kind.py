@@ -5,9 +5,8 @@ For a robot whose only moving part is a Dynamixel pan (the face tracker) the boa
 
 from __future__ import annotations
 
+from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 from pydantic import Field
-
-from robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 
 
 class EmulatorOptions(BackendOptions):
@@ -26,14 +25,14 @@ class EmulatorKind(BackendKind):
     Options = EmulatorOptions
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
-        from robots.drivers.pan_head import pan_only  # pyserial and ptys load only when used
-        from robots.emulators.backend import EmulatorBackend
+        from botstage.robots.drivers.pan_head import pan_only  # pyserial and ptys load only when used
+        from botstage.robots.emulators.backend import EmulatorBackend
 
         assert isinstance(options, EmulatorOptions)
         if request.grid is None:
             raise ValueError("the emulator's simulated robot needs a map to stand on")
         if pan_only(request.profile):  # the face tracker: its AX-12A emulated, its camera simulated
-            from robots.emulators.pan_head import PanHeadEmulatorBackend
+            from botstage.robots.emulators.pan_head import PanHeadEmulatorBackend
 
             return PanHeadEmulatorBackend(
                 request.profile,

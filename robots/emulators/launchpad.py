@@ -38,10 +38,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from robots.drivers.launchpad_protocol import PWM_LIMIT, CommandDecoder
-from robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
-from robots.sim.world import World
+from botstage.robots.drivers.launchpad_protocol import PWM_LIMIT, CommandDecoder
+from botstage.robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
+from botstage.robots.sim.world import World
 
 __all__ = ["MAX_DROP", "MAX_GARBAGE", "MAX_UNPLUG_S", "SONAR_RAYS", "WHEELS", "LaunchpadEmulator", "MotorModel"]
 

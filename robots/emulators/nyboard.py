@@ -66,10 +66,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from robots.drivers.opencat_protocol import Command, CommandDecoder
-from robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
-from robots.gaits import Gaits, motion_of
-from robots.sim.world import World
+from botstage.robots.drivers.opencat_protocol import Command, CommandDecoder
+from botstage.robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
+from botstage.robots.gaits import Gaits, motion_of
+from botstage.robots.sim.world import World
 
 __all__ = [
     "BEHAVIOURS",

@@ -22,18 +22,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from robots.backend import Fault, ScriptedWalk
-from robots.clock import Clock
-from robots.drivers.pan_head import pan_joint, servo_for
-from robots.emulators.ax12 import Ax12Emulator
-from robots.gridmap import GridMap
-from robots.interfaces import Pose2D
-from robots.profile import Profile, ServoJoint
-from robots.sim.backend import populated_world
-from robots.sim.devices import SimCamera
-from robots.sim.trajectory import Trajectory
-from robots.sim.world import World
+from botstage.robots.backend import Fault, ScriptedWalk
+from botstage.robots.clock import Clock
+from botstage.robots.drivers.pan_head import pan_joint, servo_for
+from botstage.robots.emulators.ax12 import Ax12Emulator
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Profile, ServoJoint
+from botstage.robots.sim.backend import populated_world
+from botstage.robots.sim.devices import SimCamera
+from botstage.robots.sim.trajectory import Trajectory
+from botstage.robots.sim.world import World
 
 
 class PanHeadEmulator(Ax12Emulator):

@@ -16,9 +16,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from robots.backend import Backend, Fault
-from robots.clock import SimClock
-from robots.interfaces import Pose2D
+from botstage.robots.backend import Backend, Fault
+from botstage.robots.clock import SimClock
+from botstage.robots.interfaces import Pose2D
 
 CONTROL = "@backend"  # never an interface name (not an identifier)
 

@@ -24,7 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from robots.remote import values
+from botstage.robots.remote import values
 
 MAX_HANDLES = 4096
 HANDLE = "@h"  # the prefix of a handle's address (never an interface name)

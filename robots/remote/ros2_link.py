@@ -10,11 +10,18 @@ from __future__ import annotations
 
 from typing import Any
 
-from robots.remote.devices import DeviceHost, RemoteDevice, RemoteLost, members_json, members_of, remote_devices
-from robots.remote.watched import WatchedClient
-from robots.ros2 import types
-from robots.ros2.node import Ros2Node
-from robots.ros2.service import ServiceError
+from botstage.robots.remote.devices import (
+    DeviceHost,
+    RemoteDevice,
+    RemoteLost,
+    members_json,
+    members_of,
+    remote_devices,
+)
+from botstage.robots.remote.watched import WatchedClient
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.service import ServiceError
 
 CALL_TYPE = "botstage_msgs/srv/DeviceCall"
 DESCRIBE_TYPE = "botstage_msgs/srv/DescribeDevices"

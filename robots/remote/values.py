@@ -4,7 +4,7 @@ Plain JSON turns a tuple into a list and cannot hold bytes, arrays or non-finite
 skill that compared a pose it wrote (a tuple) with the one it read back (a list) would write it
 again, and a distributed run would no longer match a local one. So tuples, bytes, numpy arrays
 (dtype, shape and raw bytes), non-string dict keys, non-finite floats and the readings of
-``robots.interfaces`` are tagged (``{"$tuple": [...]}`` and so on); everything else is JSON as
+``botstage.robots.interfaces`` are tagged (``{"$tuple": [...]}`` and so on); everything else is JSON as
 it is. Only data crosses: values of any other type are refused with their path, never pickled (a
 pickle from the network runs code).
 """
@@ -20,8 +20,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-
-from robots import interfaces
+from botstage.robots import interfaces
 
 TAG = "$"  # dicts whose only key starts with this are tags; a real dict like that is wrapped too
 # the readings and values of robots.interfaces, by class name: the only classes that cross

@@ -11,9 +11,14 @@ import threading
 from typing import Any
 
 import zenoh
-
-from robots.remote.devices import RemoteLost
-from robots.ros2.service import ServiceCancelled, ServiceClient, ServiceError, ServiceTimeout, ServiceUnavailable
+from botstage.robots.remote.devices import RemoteLost
+from botstage.robots.ros2.service import (
+    ServiceCancelled,
+    ServiceClient,
+    ServiceError,
+    ServiceTimeout,
+    ServiceUnavailable,
+)
 
 # A process killed mid-call ends the query (no server answered) a few ms before its tokens leave
 # the graph: wait that long for the liveliness to say whether it is gone.

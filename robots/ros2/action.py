@@ -43,12 +43,11 @@ from enum import IntEnum
 from typing import TYPE_CHECKING, Any
 
 import numpy
-
-from robots.ros2 import types
-from robots.ros2.attachment import Attachment
-from robots.ros2.names import fully_qualified_name
-from robots.ros2.qos import Durability, QoS
-from robots.ros2.service import (
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.attachment import Attachment
+from botstage.robots.ros2.names import fully_qualified_name
+from botstage.robots.ros2.qos import Durability, QoS
+from botstage.robots.ros2.service import (
     Call,
     PendingRequest,
     ServiceClient,
@@ -58,7 +57,7 @@ from robots.ros2.service import (
 )
 
 if TYPE_CHECKING:
-    from robots.ros2.node import Publisher, Ros2Node, Subscription
+    from botstage.robots.ros2.node import Publisher, Ros2Node, Subscription
 
 log = logging.getLogger(__name__)
 

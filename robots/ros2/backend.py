@@ -13,11 +13,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
+from botstage.robots.ros2.endpoints import DEFAULT_LISTEN, ROUTER_LISTEN, endpoints
+from botstage.robots.ros2.names import check_domain_id, validate_namespace, validate_node_name
 from pydantic import Field, field_validator
-
-from robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
-from robots.ros2.endpoints import DEFAULT_LISTEN, ROUTER_LISTEN, endpoints
-from robots.ros2.names import check_domain_id, validate_namespace, validate_node_name
 
 
 class Ros2Options(BackendOptions):
@@ -62,7 +61,7 @@ class Ros2Kind(BackendKind):
     Options = Ros2Options
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
-        from robots.ros2.topic_robot import Ros2Backend  # zenoh and rosbags load only when used
+        from botstage.robots.ros2.topic_robot import Ros2Backend  # zenoh and rosbags load only when used
 
         assert isinstance(options, Ros2Options)
         return Ros2Backend.open(request, options)

@@ -19,10 +19,9 @@ import math
 from typing import Any
 
 import numpy as np
-
-from robots.interfaces import AUDIO_RATE_HZ, TrackedPerson
-from robots.ros2 import types
-from robots.ros2.readings import header
+from botstage.robots.interfaces import AUDIO_RATE_HZ, TrackedPerson
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.readings import header
 
 # a display message is bounded: layouts are names and a handful of short fields
 DISPLAY_MAX_CHARS = 64 * 1024

@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from robots.ros2.liveliness import EntityKind, GraphEntity, TokenError, parse_token
-from robots.ros2.types import ros_type_name
+from botstage.robots.ros2.liveliness import EntityKind, GraphEntity, TokenError, parse_token
+from botstage.robots.ros2.types import ros_type_name
 
 _TOPIC_KINDS = (EntityKind.PUBLISHER, EntityKind.SUBSCRIPTION)
 _SERVICE_KINDS = (EntityKind.SERVICE, EntityKind.CLIENT)

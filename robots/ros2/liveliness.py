@@ -17,8 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from robots.ros2 import qos as qos_strings
-from robots.ros2.names import (
+from botstage.robots.ros2 import qos as qos_strings
+from botstage.robots.ros2.names import (
     check_domain_id,
     demangle,
     mangle,
@@ -26,7 +26,7 @@ from robots.ros2.names import (
     validate_namespace,
     validate_node_name,
 )
-from robots.ros2.qos import QoS
+from botstage.robots.ros2.qos import QoS
 
 ADMIN_SPACE = "@ros2_lv"
 NODE_CHUNKS = 9

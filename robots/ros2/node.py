@@ -32,15 +32,14 @@ from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import zenoh
+from botstage.robots.ros2 import attachment as attachments
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.attachment import Attachment, AttachmentError
+from botstage.robots.ros2.graph import Graph
+from botstage.robots.ros2.liveliness import EntityKind, entity_token, graph_key, node_token
+from botstage.robots.ros2.names import check_domain_id, data_key, fully_qualified_name, node_fqn
+from botstage.robots.ros2.qos import Durability, History, QoS, Reliability
 from zenoh import ext as zenoh_ext
-
-from robots.ros2 import attachment as attachments
-from robots.ros2 import types
-from robots.ros2.attachment import Attachment, AttachmentError
-from robots.ros2.graph import Graph
-from robots.ros2.liveliness import EntityKind, entity_token, graph_key, node_token
-from robots.ros2.names import check_domain_id, data_key, fully_qualified_name, node_fqn
-from robots.ros2.qos import Durability, History, QoS, Reliability
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +65,7 @@ def session_config(
     Listening beyond loopback is refused (``security.ListenError``) unless ``allow_remote`` asks
     for it and ``options`` demand mutual TLS (robots/ros2/security.py).
     """
-    from robots.ros2.security import check_listen  # certificates' imports only where sessions open
+    from botstage.robots.ros2.security import check_listen  # certificates' imports only where sessions open
 
     if mode not in ("peer", "router"):
         raise ValueError(f"Zenoh mode {mode!r}: botstage nodes are 'peer' or 'router'")
@@ -370,13 +369,13 @@ class Ros2Node:
         The handler runs on the server's own thread (robots.ros2.service); ``deferred=True`` hands
         it a PendingRequest to answer later instead.
         """
-        from robots.ros2.service import ServiceServer
+        from botstage.robots.ros2.service import ServiceServer
 
         return self._add(lambda i: ServiceServer(self, i, name, type_name, handler, qos or QoS(), deferred))
 
     def client(self, name: str, type_name: str, qos: QoS | None = None) -> Any:
         """A client of the ``type_name`` service on ``name`` (robots.ros2.service.ServiceClient)."""
-        from robots.ros2.service import ServiceClient
+        from botstage.robots.ros2.service import ServiceClient
 
         return self._add(lambda i: ServiceClient(self, i, name, type_name, qos or QoS()))
 
@@ -385,14 +384,14 @@ class Ros2Node:
 
         ``callbacks`` and options are ActionServer's (``on_goal``, ``on_cancel``, ``on_accepted``, …).
         """
-        from robots.ros2.action import ActionServer
+        from botstage.robots.ros2.action import ActionServer
 
         self._check_open()
         return ActionServer(self, name, type_name, **callbacks)
 
     def action_client(self, name: str, type_name: str) -> Any:
         """A client of the ``type_name`` action on ``name`` (robots.ros2.action.ActionClient)."""
-        from robots.ros2.action import ActionClient
+        from botstage.robots.ros2.action import ActionClient
 
         self._check_open()
         return ActionClient(self, name, type_name)

@@ -29,13 +29,20 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-
-from robots.clock import Clock
-from robots.interfaces import AUDIO_BUFFER_S, AUDIO_RATE_HZ, CameraInfo, OdometryReading, Pose2D, TrackedPerson, Twist2D
-from robots.ros2 import botstage_messages as own
-from robots.ros2 import readings
-from robots.ros2.attachment import Attachment
-from robots.ros2.node import Publisher
+from botstage.robots.clock import Clock
+from botstage.robots.interfaces import (
+    AUDIO_BUFFER_S,
+    AUDIO_RATE_HZ,
+    CameraInfo,
+    OdometryReading,
+    Pose2D,
+    TrackedPerson,
+    Twist2D,
+)
+from botstage.robots.ros2 import botstage_messages as own
+from botstage.robots.ros2 import readings
+from botstage.robots.ros2.attachment import Attachment
+from botstage.robots.ros2.node import Publisher
 
 log = logging.getLogger(__name__)
 

@@ -20,9 +20,7 @@ from functools import cache
 from typing import Any
 
 import numpy as np
-from rosbags.typesys import Stores, get_typestore
-
-from robots.interfaces import (
+from botstage.robots.interfaces import (
     BatteryState,
     ImuReading,
     LaserScan,
@@ -31,6 +29,7 @@ from robots.interfaces import (
     SonarReading,
     Twist2D,
 )
+from rosbags.typesys import Stores, get_typestore
 
 ODOM_FRAME = "odom"  # REP 105
 BASE_FRAME = "base_link"

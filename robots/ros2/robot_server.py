@@ -30,16 +30,16 @@ from collections import Counter, deque
 from collections.abc import Callable
 from typing import Any
 
-from robots.backend import Backend
-from robots.clock import Clock, WallClock
-from robots.interfaces import AUDIO_RATE_HZ, Twist2D
-from robots.ros2 import botstage_messages as own
-from robots.ros2 import readings
-from robots.ros2.attachment import Attachment
-from robots.ros2.names import fully_qualified_name
-from robots.ros2.node import Publisher, Ros2Node
-from robots.ros2.topics import CLOCK_QOS, CLOCK_TOPIC, CLOCK_TYPE, Direction, Route
-from robots.ros2.watchdog import Trip, VelocityWatchdog
+from botstage.robots.backend import Backend
+from botstage.robots.clock import Clock, WallClock
+from botstage.robots.interfaces import AUDIO_RATE_HZ, Twist2D
+from botstage.robots.ros2 import botstage_messages as own
+from botstage.robots.ros2 import readings
+from botstage.robots.ros2.attachment import Attachment
+from botstage.robots.ros2.names import fully_qualified_name
+from botstage.robots.ros2.node import Publisher, Ros2Node
+from botstage.robots.ros2.topics import CLOCK_QOS, CLOCK_TOPIC, CLOCK_TYPE, Direction, Route
+from botstage.robots.ros2.watchdog import Trip, VelocityWatchdog
 
 log = logging.getLogger(__name__)
 

@@ -50,9 +50,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from robots.ros2.certs import Credentials
-from robots.ros2.liveliness import ADMIN_SPACE
-from robots.ros2.names import check_domain_id, fully_qualified_name, validate_node_name
+from botstage.robots.ros2.certs import Credentials
+from botstage.robots.ros2.liveliness import ADMIN_SPACE
+from botstage.robots.ros2.names import check_domain_id, fully_qualified_name, validate_node_name
 
 TLS = "transport/link/tls"
 PROTOCOLS = "transport/link/protocols"

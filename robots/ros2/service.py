@@ -48,17 +48,16 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import zenoh
-
-from robots.ros2 import attachment as attachments
-from robots.ros2 import types
-from robots.ros2.attachment import Attachment, AttachmentError
-from robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
-from robots.ros2.names import mangle
-from robots.ros2.node import _Entity
-from robots.ros2.qos import History, QoS
+from botstage.robots.ros2 import attachment as attachments
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.attachment import Attachment, AttachmentError
+from botstage.robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
+from botstage.robots.ros2.names import mangle
+from botstage.robots.ros2.node import _Entity
+from botstage.robots.ros2.qos import History, QoS
 
 if TYPE_CHECKING:
-    from robots.ros2.node import Ros2Node
+    from botstage.robots.ros2.node import Ros2Node
 
 log = logging.getLogger(__name__)
 

@@ -16,16 +16,16 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
-from robots.backend import Fault, OpenRequest
-from robots.clock import Clock
-from robots.gridmap import GridMap
-from robots.interfaces import CameraInfo, Pose2D
-from robots.profile import Device, Profile
-from robots.ros2 import botstage_messages as own
-from robots.ros2 import readings
-from robots.ros2.names import fully_qualified_name
-from robots.ros2.node import Ros2Node
-from robots.ros2.proxies import (
+from botstage.robots.backend import Fault, OpenRequest
+from botstage.robots.clock import Clock
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import CameraInfo, Pose2D
+from botstage.robots.profile import Device, Profile
+from botstage.robots.ros2 import botstage_messages as own
+from botstage.robots.ros2 import readings
+from botstage.robots.ros2.names import fully_qualified_name
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.proxies import (
     AudioBuffer,
     BatteryProxy,
     CameraProxy,
@@ -42,10 +42,10 @@ from robots.ros2.proxies import (
     SonarProxy,
     SpeakerProxy,
 )
-from robots.ros2.topics import Direction, Route, routes
+from botstage.robots.ros2.topics import Direction, Route, routes
 
 if TYPE_CHECKING:
-    from robots.ros2.backend import Ros2Options
+    from botstage.robots.ros2.backend import Ros2Options
 
 log = logging.getLogger(__name__)
 
@@ -221,7 +221,7 @@ class Ros2Backend:
 
 def joint_limits(spec: Device) -> tuple[float, float]:
     """A pan's limits in rad from its profile joint (the AX-12A's units: 300 deg over 1024)."""
-    from robots.drivers.dynamixel_servo import raw_to_angle
+    from botstage.robots.drivers.dynamixel_servo import raw_to_angle
 
     joint = spec.joint
     if joint is None:

@@ -34,11 +34,11 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import TYPE_CHECKING
 
-from robots.ros2.names import validate_topic_name
-from robots.ros2.qos import QoS, Reliability
+from botstage.robots.ros2.names import validate_topic_name
+from botstage.robots.ros2.qos import QoS, Reliability
 
 if TYPE_CHECKING:
-    from robots.profile import Profile
+    from botstage.robots.profile import Profile
 
 
 class Direction(Enum):

@@ -7,13 +7,13 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from robots.backend import Fault, ScriptedWalk
-from robots.clock import Clock
-from robots.gridmap import GridMap
-from robots.interfaces import Pose2D
-from robots.located_yaml import find_yaml
-from robots.profile import Profile
-from robots.sim.devices import (
+from botstage.robots.backend import Fault, ScriptedWalk
+from botstage.robots.clock import Clock
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.located_yaml import find_yaml
+from botstage.robots.profile import Profile
+from botstage.robots.sim.devices import (
     SimBattery,
     SimCamera,
     SimDisplay,
@@ -29,10 +29,10 @@ from robots.sim.devices import (
     SimSonar,
     SimSpeaker,
 )
-from robots.sim.people import PERSON_RADIUS, Crowd
-from robots.sim.trajectory import Trajectory
-from robots.sim.voices import Voices
-from robots.sim.world import Bump, World
+from botstage.robots.sim.people import PERSON_RADIUS, Crowd
+from botstage.robots.sim.trajectory import Trajectory
+from botstage.robots.sim.voices import Voices
+from botstage.robots.sim.world import Bump, World
 
 MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
 WHEEL_SLIP = 0.02  # the World's default: wheels on a hard floor

@@ -40,9 +40,8 @@ from typing import Protocol
 
 import cv2
 import numpy as np
-
-from robots.profile import Device
-from robots.sim.world import RAY_STEP, World
+from botstage.robots.profile import Device
+from botstage.robots.sim.world import RAY_STEP, World
 
 CAMERA_HEIGHT = 1.0  # m: a decision (a Kinect on a PeopleBot's mast); the paper gives no height
 WALL_HEIGHT = 2.5  # m: every blocked cell, exhibit plinths included

@@ -14,10 +14,9 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
-
-from robots.clock import Clock
-from robots.gaits import GaitOdometry, Gaits, choose
-from robots.interfaces import (
+from botstage.robots.clock import Clock
+from botstage.robots.gaits import GaitOdometry, Gaits, choose
+from botstage.robots.interfaces import (
     AUDIO_BUFFER_S,
     BatteryState,
     CameraInfo,
@@ -29,12 +28,12 @@ from robots.interfaces import (
     TrackedPerson,
     Twist2D,
 )
-from robots.profile import Device, ServoJoint
-from robots.sim.people import Crowd
-from robots.sim.world import World
+from botstage.robots.profile import Device, ServoJoint
+from botstage.robots.sim.people import Crowd
+from botstage.robots.sim.world import World
 
 if TYPE_CHECKING:
-    from robots.sim.camera import CameraView
+    from botstage.robots.sim.camera import CameraView
 
 
 class SimDrive:
@@ -261,7 +260,7 @@ class SimCamera:
         self, world: World, crowd: Crowd, device: Device, clock: Clock, pan: Callable[[], float] | None = None
     ) -> None:
         """``pan``: the present angle (rad) of the joint the camera rides on, read at each render."""
-        from robots.sim.camera import CameraView  # OpenCV loads only for robots with a camera
+        from botstage.robots.sim.camera import CameraView  # OpenCV loads only for robots with a camera
 
         self.world = world
         self.crowd = crowd
@@ -432,7 +431,7 @@ class SimPan:
     """
 
     def __init__(self, world: World, joint: ServoJoint) -> None:
-        from robots.drivers import dynamixel_servo as ax  # the servo's units and conversions, one place
+        from botstage.robots.drivers import dynamixel_servo as ax  # the servo's units and conversions, one place
 
         self.world = world
         self.joint = joint

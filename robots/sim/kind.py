@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
+from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 
 
 class SimKind(BackendKind):
@@ -14,7 +14,7 @@ class SimKind(BackendKind):
         """The simulator takes its settings from the mission (world, people, gatherings, walks, voices)."""
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
-        from robots.sim.backend import SimBackend
+        from botstage.robots.sim.backend import SimBackend
 
         if request.grid is None:
             raise ValueError("the simulator needs a map to put the robot on")

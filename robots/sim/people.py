@@ -25,10 +25,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from robots.backend import ScriptedWalk
-from robots.gridmap import FREE, GridMap
-from robots.sim.world import inflate
+from botstage.robots.backend import ScriptedWalk
+from botstage.robots.gridmap import FREE, GridMap
+from botstage.robots.sim.world import inflate
 
 PERSON_RADIUS = 0.25
 

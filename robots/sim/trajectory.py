@@ -6,7 +6,7 @@ import itertools
 import math
 from pathlib import Path
 
-from robots.interfaces import Pose2D
+from botstage.robots.interfaces import Pose2D
 
 
 class Trajectory(list[tuple[float, float, float, float]]):

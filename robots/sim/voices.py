@@ -31,10 +31,9 @@ from typing import Any
 
 import numpy as np
 import yaml
-
-from robots.sim.devices import SimMicrophone
-from robots.sim.people import Crowd
-from robots.sim.world import World
+from botstage.robots.sim.devices import SimMicrophone
+from botstage.robots.sim.people import Crowd
+from botstage.robots.sim.world import World
 
 VOICES_DIR = Path(__file__).resolve().parent / "voices"
 

@@ -39,10 +39,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from robots.gridmap import FREE, GridMap
-from robots.interfaces import Pose2D
-from robots.profile import Device, Profile
+from botstage.robots.gridmap import FREE, GridMap
+from botstage.robots.interfaces import Pose2D
+from botstage.robots.profile import Device, Profile
 
 RAY_STEP = 0.7  # in cells: under the half-diagonal (1/sqrt 2), so a thin diagonal wall is not stepped over
 RAY_CHUNK = 48  # steps a ray marches before the rays that hit drop out

@@ -22,8 +22,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from aiml.PatternMgr import PatternMgr
-
-from skills.chat.learn import Categories
+from botstage.skills.chat.learn import Categories
 
 _SPECIAL = (
     PatternMgr._UNDERSCORE,
@@ -220,10 +219,10 @@ class FlatBrain(PatternMgr):
         raise TypeError("a FlatBrain is read-only: learn AIML into a PatternMgr and flatten it")
 
     def save(self, filename: str) -> None:
-        raise TypeError("a FlatBrain is stored by skills.chat.cache, not by PatternMgr.save")
+        raise TypeError("a FlatBrain is stored by botstage.skills.chat.cache, not by PatternMgr.save")
 
     def restore(self, filename: str) -> None:
-        raise TypeError("a FlatBrain is loaded by skills.chat.cache, not by PatternMgr.restore")
+        raise TypeError("a FlatBrain is loaded by botstage.skills.chat.cache, not by PatternMgr.restore")
 
 
 def build(categories: Categories) -> FlatTrie:

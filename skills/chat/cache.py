@@ -24,11 +24,10 @@ from pathlib import Path
 from typing import Literal
 
 from aiml.constants import VERSION as PYAIML_VERSION
-
-from robots.located_yaml import Location, Problem
-from skills.chat.brain import FlatTrie, build
-from skills.chat.learn import learn_files
-from skills.files import write_atomically
+from botstage.robots.located_yaml import Location, Problem
+from botstage.skills.chat.brain import FlatTrie, build
+from botstage.skills.chat.learn import learn_files
+from botstage.skills.files import write_atomically
 
 FORMAT = 1
 MAGIC = b"botstage-aiml-brain\n"

@@ -12,10 +12,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
-from skills.chat.brain import FlatTrie
-from skills.chat.kernel import SafeKernel
-from skills.chat.persona import MAYA_PREDICATES
-from skills.chat.routing import route
+from botstage.skills.chat.brain import FlatTrie
+from botstage.skills.chat.kernel import SafeKernel
+from botstage.skills.chat.persona import MAYA_PREDICATES
+from botstage.skills.chat.routing import route
 
 FALLBACK_CUE = "CUE FALLBACK"  # Maya's line when no category matches (see aiml/maya-fallback.aiml)
 

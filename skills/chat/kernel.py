@@ -19,9 +19,8 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from aiml import Kernel
-
-from robots.clock import Clock
-from skills.chat.brain import FlatBrain, FlatTrie
+from botstage.robots.clock import Clock
+from botstage.skills.chat.brain import FlatBrain, FlatTrie
 
 SIM_EPOCH = datetime(2026, 5, 18, 10, 0, 0)  # a simulated mission starts at opening time on a Monday
 _REFUSED = ("system", "learn")

@@ -17,8 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from aiml.AimlParser import AimlHandler, AimlParserError
-
-from robots.located_yaml import Location, Problem, display_name
+from botstage.robots.located_yaml import Location, Problem, display_name
 
 # (pattern, that, topic) -> template, as python-aiml's handler collects them
 Categories = dict[tuple[str, str, str], list[Any]]

@@ -15,9 +15,8 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-
-from robots.clock import Clock
-from robots.interfaces import Pose2D
+from botstage.robots.clock import Clock
+from botstage.robots.interfaces import Pose2D
 
 MOVING_SPEED = 0.02  # m/s: a command at least this fast is expected to move the robot
 MOVING_TURN = 0.1  # rad/s

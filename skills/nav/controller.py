@@ -15,8 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from robots.interfaces import LaserScan, Pose2D
+from botstage.robots.interfaces import LaserScan, Pose2D
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-from robots.interfaces import Pose2D
+from botstage.robots.interfaces import Pose2D
 
 
 def wrap(theta: float) -> float:

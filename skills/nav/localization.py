@@ -30,12 +30,11 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-
-from robots.gridmap import GridMap
-from robots.interfaces import Imu, Laser, Odometry, OdometryReading, Pose2D
-from robots.profile import Profile
-from skills.nav.ekf import MotionNoise, PoseEKF, wrap
-from skills.nav.scan_match import MatchParams, MatchResult, ScanMatcher
+from botstage.robots.gridmap import GridMap
+from botstage.robots.interfaces import Imu, Laser, Odometry, OdometryReading, Pose2D
+from botstage.robots.profile import Profile
+from botstage.skills.nav.ekf import MotionNoise, PoseEKF, wrap
+from botstage.skills.nav.scan_match import MatchParams, MatchResult, ScanMatcher
 
 
 @dataclass(frozen=True)

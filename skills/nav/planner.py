@@ -12,8 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pyastar2d
-
-from robots.gridmap import GridMap
+from botstage.robots.gridmap import GridMap
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ off but still within the search window (0.3 m, 6°) while its covariance claims 
 good matches gated out as jumps; the ``Localizer`` then inflates the covariance at each such
 rejection until the gate lets the map in (tested with 0.22 m and 3° off at 1 cm confidence).
 
-Figures (``python -m missions.bench.bench_localization``, 2-core VM): 0.47 ms median and 0.55 ms
+Figures (``python -m botstage.missions.bench.bench_localization``, 2-core VM): 0.47 ms median and 0.55 ms
 p90 per match on the museum loop (181 beams, 0.05 m map; target 5 ms), 1.5 ms median and 2.2
 ms p90 with the window at its widest; from 300 random museum poses with the prior 0.15 m and 4°
 off, 93% accepted (the rest refused as ambiguous: a robot facing one wall) with 0.5 cm mean and
@@ -56,10 +56,9 @@ from dataclasses import dataclass
 from weakref import finalize, ref
 
 import numpy as np
-
-from robots.gridmap import FREE, GridMap
-from robots.interfaces import LaserScan, Pose2D
-from skills.nav.ekf import pose_residual, wrap
+from botstage.robots.gridmap import FREE, GridMap
+from botstage.robots.interfaces import LaserScan, Pose2D
+from botstage.skills.nav.ekf import pose_residual, wrap
 
 FAR = 1.0  # m: the field is clipped here; a beam this far from any wall matches nothing
 

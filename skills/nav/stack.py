@@ -24,14 +24,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
-from robots.clock import Clock
-from robots.gridmap import FREE, GridMap
-from robots.interfaces import LaserScan, Pose2D, SonarReading
-from robots.profile import Profile
-from skills.nav.controller import FollowerParams
-from skills.nav.costmap import LETHAL, inflated_costs
-from skills.nav.planner import Plan, Planner
+from botstage.robots.clock import Clock
+from botstage.robots.gridmap import FREE, GridMap
+from botstage.robots.interfaces import LaserScan, Pose2D, SonarReading
+from botstage.robots.profile import Profile
+from botstage.skills.nav.controller import FollowerParams
+from botstage.skills.nav.costmap import LETHAL, inflated_costs
+from botstage.skills.nav.planner import Plan, Planner
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree

@@ -18,9 +18,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from robots.interfaces import Pose2D
-from skills.nav.stack import NavStack
+from botstage.robots.interfaces import Pose2D
+from botstage.skills.nav.stack import NavStack
 
 MARGIN = 0.05  # m kept between the footprint and what the robot knows of: the estimate's error
 CLOSING = 0.01  # m: nearer than the start by more than this counts as closing in (sensor noise)

@@ -11,9 +11,8 @@ import math
 from typing import Any
 
 import numpy as np
-
-from skills.base import In, Port
-from skills.nav.stack import NavStack, blocked_cells
+from botstage.skills.base import In, Port
+from botstage.skills.nav.stack import NavStack, blocked_cells
 
 PATH = list[list[float]]
 GOAL = str | list[float]

@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from skills.base import In, Outcome, Skill, SkillContext
-from skills.nav2.common import CODES, GOAL, codes, ignored
-from skills.navigate import nav_stack
+from botstage.skills.base import In, Outcome, Skill, SkillContext
+from botstage.skills.nav2.common import CODES, GOAL, codes, ignored
+from botstage.skills.navigate import nav_stack
 
 ERROR_CODE = In(int, doc="the last error code of the server (e.g. {follow_path_error_code})")
 TO_CHECK = In(CODES, default=None, doc="codes that count, 'a;b' or a list; unset: the node's own set")

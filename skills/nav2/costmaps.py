@@ -9,11 +9,10 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-
-from skills.base import In, Outcome, Skill, SkillContext
-from skills.nav.stack import NavStack
-from skills.nav2.common import ignored
-from skills.navigate import nav_stack
+from botstage.skills.base import In, Outcome, Skill, SkillContext
+from botstage.skills.nav.stack import NavStack
+from botstage.skills.nav2.common import ignored
+from botstage.skills.navigate import nav_stack
 
 COSTMAP = {
     "service_name": ignored("botstage's one obstacle layer serves as the global and the local costmap"),

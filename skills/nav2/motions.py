@@ -1,6 +1,6 @@
 """Nav2's behaviour server actions (Spin, BackUp, DriveOnHeading, Wait) as botstage's recoveries.
 
-Each runs botstage's own skill (``skills.recoveries``, ``skills.wait``), which checks the sweep
+Each runs botstage's own skill (``botstage.skills.recoveries``, ``botstage.skills.wait``), which checks the sweep
 of the robot's footprint and stops at the first contact, and reports Nav2's codes on failure.
 """
 
@@ -9,14 +9,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from skills.nav.contact import ContactWatch
-from skills.nav.sweep import sweep
-from skills.nav2.common import BEHAVIOR, SERVER, WAIT, ignored
-from skills.navigate import nav_stack
-from skills.recoveries import BackUp as BotstageBackUp
-from skills.recoveries import Spin as BotstageSpin
-from skills.wait import Wait as BotstageWait
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.nav.contact import ContactWatch
+from botstage.skills.nav.sweep import sweep
+from botstage.skills.nav2.common import BEHAVIOR, SERVER, WAIT, ignored
+from botstage.skills.navigate import nav_stack
+from botstage.skills.recoveries import BackUp as BotstageBackUp
+from botstage.skills.recoveries import Spin as BotstageSpin
+from botstage.skills.wait import Wait as BotstageWait
 
 RESULT = {
     "error_code_id": Out(int, doc="0, or Nav2's behaviour code (701 TIMEOUT, 703 COLLISION_AHEAD, 704 INVALID_INPUT)"),

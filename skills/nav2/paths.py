@@ -7,10 +7,9 @@ import math
 from typing import Any
 
 import numpy as np
-
-from skills.base import In, Out, Outcome, Skill, SkillContext
-from skills.nav2.common import GOALS, PATH, SERVER, closest_index, ignored, length, sense, xy
-from skills.navigate import nav_stack
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext
+from botstage.skills.nav2.common import GOALS, PATH, SERVER, closest_index, ignored, length, sense, xy
+from botstage.skills.navigate import nav_stack
 
 FRAMES = {
     "global_frame": ignored("botstage's goals and paths are in the map frame"),

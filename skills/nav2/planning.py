@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from skills.base import In, Out, Outcome, Skill, SkillContext
-from skills.nav.planner import Unreachable
-from skills.nav.stack import NavStack
-from skills.nav2.common import COMPUTE_PATH, GOAL, GOALS, PATH, SERVER, THROUGH_POSES, as_path, ignored, sense
-from skills.navigate import nav_stack
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext
+from botstage.skills.nav.planner import Unreachable
+from botstage.skills.nav.stack import NavStack
+from botstage.skills.nav2.common import COMPUTE_PATH, GOAL, GOALS, PATH, SERVER, THROUGH_POSES, as_path, ignored, sense
+from botstage.skills.navigate import nav_stack
 
 PLAN_OUTPUTS = {
     "path": Out(PATH, doc="[[x, y], ...] in the map frame; the last point has the goal's heading when it has one"),

@@ -6,8 +6,8 @@ output is always ``default_*`` (Nav2 does the same until something is published 
 
 from __future__ import annotations
 
-from skills.base import In, Out, Outcome, Skill, SkillContext
-from skills.nav2.common import ignored
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext
+from botstage.skills.nav2.common import ignored
 
 
 def _selector(kind: str, what: str) -> type[Skill]:

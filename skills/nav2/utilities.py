@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from skills.nav2.common import GOAL, GOALS, PATH, SERVER, ignored
-from skills.navigate import nav_stack
+from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.nav2.common import GOAL, GOALS, PATH, SERVER, ignored
+from botstage.skills.navigate import nav_stack
 
 POSE = list[float]
 FRAMES = {

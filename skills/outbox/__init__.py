@@ -10,6 +10,6 @@
 Only ``settings`` loads on import: httpx is imported when an outbox first opens.
 """
 
-from skills.outbox.settings import TOKEN_ENV, OutboxSettings
+from botstage.skills.outbox.settings import TOKEN_ENV, OutboxSettings
 
 __all__ = ["TOKEN_ENV", "OutboxSettings"]

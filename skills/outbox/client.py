@@ -28,9 +28,8 @@ from typing import Literal
 from urllib.parse import urlsplit, urlunsplit
 
 import httpx
-
-from skills.outbox.images import MEDIA_TYPES
-from skills.outbox.store import Item
+from botstage.skills.outbox.images import MEDIA_TYPES
+from botstage.skills.outbox.store import Item
 
 TRANSIENT = frozenset({408, 425, 429})  # besides every 5xx
 TOKEN_REFUSED = frozenset({401, 403, 407})

@@ -14,9 +14,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from skills.outbox.settings import OutboxSettings
-from skills.outbox.store import PENDING, UPLOADED, Item, OutboxStore
-from skills.outbox.worker import Backoff, UploadWorker
+from botstage.skills.outbox.settings import OutboxSettings
+from botstage.skills.outbox.store import PENDING, UPLOADED, Item, OutboxStore
+from botstage.skills.outbox.worker import Backoff, UploadWorker
 
 
 class Outbox:
@@ -36,7 +36,7 @@ class Outbox:
         only); otherwise the owner calls ``pump()`` and ``settle()`` (once per tick on the sim clock).
         ``token`` defaults to the environment variable the settings name; ``on_change`` hears every
         answer applied (on the pumping thread)."""
-        from skills.outbox.client import GalleryClient  # httpx loads only when an outbox opens
+        from botstage.skills.outbox.client import GalleryClient  # httpx loads only when an outbox opens
 
         self.settings = settings or OutboxSettings()
         self.endpoint = endpoint

@@ -17,8 +17,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
-from robots.clock import Clock
-from skills.outbox.settings import OutboxSettings
+from botstage.robots.clock import Clock
+from botstage.skills.outbox.settings import OutboxSettings
 
 
 class LocalGallery(Protocol):
@@ -50,7 +50,7 @@ class Uploads:
 
     def outbox(self, settings: OutboxSettings) -> Any:
         """The outbox for these settings, opened (and resumed) on first use. Blocking: opens files."""
-        from skills.outbox.outbox import Outbox
+        from botstage.skills.outbox.outbox import Outbox
 
         with self._lock:
             endpoint = settings.endpoint or self._local_endpoint()
@@ -102,7 +102,7 @@ class Uploads:
 
     def summary(self) -> dict[str, Any]:
         """Counts summed over the run's outboxes, then each outbox's own figures."""
-        from skills.outbox.client import redact
+        from botstage.skills.outbox.client import redact
 
         with self._lock:
             outboxes = list(self._outboxes.items())

@@ -30,8 +30,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from skills.files import fsync_dir
-from skills.outbox.images import HEAD_BYTES, sniff
+from botstage.skills.files import fsync_dir
+from botstage.skills.outbox.images import HEAD_BYTES, sniff
 
 PENDING = "pending"
 UPLOADED = "uploaded"

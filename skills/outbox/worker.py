@@ -28,8 +28,8 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 
-from skills.outbox.client import Attempt, GalleryClient
-from skills.outbox.store import DAMAGED, PENDING, REJECTED, Item, OutboxStore
+from botstage.skills.outbox.client import Attempt, GalleryClient
+from botstage.skills.outbox.store import DAMAGED, PENDING, REJECTED, Item, OutboxStore
 
 _log = logging.getLogger("botstage.outbox")
 IDLE_WAKE_S = 1.0  # the real-time loop's longest sleep: it also notices being stopped

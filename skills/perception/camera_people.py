@@ -20,8 +20,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-from robots.interfaces import TrackedPerson
+from botstage.robots.interfaces import TrackedPerson
 
 CASCADE = Path(getattr(getattr(cv2, "data", None), "haarcascades", "")) / "haarcascade_frontalface_default.xml"
 FACE_HEIGHT = 0.22  # m spanned by the cascade's box on a face

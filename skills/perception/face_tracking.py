@@ -33,8 +33,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-
-from skills.perception.camera_people import CASCADE, load_cascade
+from botstage.skills.perception.camera_people import CASCADE, load_cascade
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,10 +15,10 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from robots.clock import Clock
-from robots.interfaces import Pose2D
-from skills.perception.crowd import CrowdTracker
-from skills.perception.tracking import PeopleTracks, TrackParams
+from botstage.robots.clock import Clock
+from botstage.robots.interfaces import Pose2D
+from botstage.skills.perception.crowd import CrowdTracker
+from botstage.skills.perception.tracking import PeopleTracks, TrackParams
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ still running, or the outcome with its reason and outputs, plus the node's log l
 blackboard writes in the order they happened, which the proxy replays where a local skill would
 have made them. The other process holds a ``host.SkillHost``: it runs the real skill through
 ``SkillExecution`` on one thread, on a clock set by the requests, so the skill sees the mission's
-time. Values travel as tagged JSON (``robots.remote.values``): tuples stay tuples, so a distributed run is
+time. Values travel as tagged JSON (``botstage.robots.remote.values``): tuples stay tuples, so a distributed run is
 byte-identical to a local one.
 
 The link is a protocol (``proxy.SkillLink``); ``robots/ros2``'s services carry it between

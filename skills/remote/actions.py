@@ -18,12 +18,12 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any
 
-from robots.clock import WallClock
-from robots.ros2 import types
-from robots.ros2.node import Ros2Node
-from skills.remote.host import SkillHost
-from skills.remote.protocol import Call, State, Step, TickReply, TickRequest
-from skills.remote.proxy import node_keys
+from botstage.robots.clock import WallClock
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.node import Ros2Node
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import Call, State, Step, TickReply, TickRequest
+from botstage.skills.remote.proxy import node_keys
 
 log = logging.getLogger(__name__)
 

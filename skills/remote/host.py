@@ -19,15 +19,14 @@ import threading
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from botstage.robots.remote import values
+from botstage.skills.base import FAILURE, Outcome, SkillContext, SkillLogger
+from botstage.skills.execution import SkillExecution, describe_exception
+from botstage.skills.registry import Registry, UnknownSkillError
+from botstage.skills.remote.protocol import Call, State, Step, TickReply, TickRequest
+from botstage.skills.remote.rng import LazyRandom
+from botstage.skills.workers import Workers
 from pydantic import BaseModel
-
-from robots.remote import values
-from skills.base import FAILURE, Outcome, SkillContext, SkillLogger
-from skills.execution import SkillExecution, describe_exception
-from skills.registry import Registry, UnknownSkillError
-from skills.remote.protocol import Call, State, Step, TickReply, TickRequest
-from skills.remote.rng import LazyRandom
-from skills.workers import Workers
 
 log = logging.getLogger(__name__)
 

@@ -14,9 +14,8 @@ from enum import IntEnum
 from typing import Any
 
 import numpy as np
-
-from robots.remote import values
-from skills.remote import rng
+from botstage.robots.remote import values
+from botstage.skills.remote import rng
 
 
 class Step(IntEnum):

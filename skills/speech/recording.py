@@ -6,9 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from skills.speech.recognizer import CommandRecognizer
-from skills.speech.vad import find_utterances
+from botstage.skills.speech.recognizer import CommandRecognizer
+from botstage.skills.speech.vad import find_utterances
 
 
 @dataclass(frozen=True, slots=True)

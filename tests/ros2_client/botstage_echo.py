@@ -13,9 +13,9 @@ import json
 import sys
 import threading
 
-from robots.ros2 import types
-from robots.ros2.attachment import Attachment
-from robots.ros2.node import Ros2Node
+from botstage.robots.ros2 import types
+from botstage.robots.ros2.attachment import Attachment
+from botstage.robots.ros2.node import Ros2Node
 
 FAILSAFE_S = 90.0
 

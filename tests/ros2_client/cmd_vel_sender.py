@@ -14,9 +14,9 @@ import sys
 import threading
 import time
 
-from robots.interfaces import Twist2D
-from robots.ros2.node import Ros2Node
-from robots.ros2.readings import twist_message
+from botstage.robots.interfaces import Twist2D
+from botstage.robots.ros2.node import Ros2Node
+from botstage.robots.ros2.readings import twist_message
 
 FAILSAFE_S = 120.0
 PERIOD_S = 0.05

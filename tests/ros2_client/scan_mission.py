@@ -13,9 +13,9 @@ import json
 import sys
 from pathlib import Path
 
-from missions.runner import run
-from skills.base import Out, Outcome, Skill, SkillContext
-from skills.registry import Registry
+from botstage.missions.runner import run
+from botstage.skills.base import Out, Outcome, Skill, SkillContext
+from botstage.skills.registry import Registry
 
 MISSION = Path(__file__).with_name("scan_mission.yaml")
 

@@ -10,10 +10,10 @@ import signal
 import sys
 import threading
 
-from robots.ros2.node import Ros2Node
-from skills.registry import Registry
-from skills.remote.host import SkillHost
-from skills.remote.ros2_link import serve_skill_host
+from botstage.robots.ros2.node import Ros2Node
+from botstage.skills.registry import Registry
+from botstage.skills.remote.host import SkillHost
+from botstage.skills.remote.ros2_link import serve_skill_host
 
 
 def main() -> None:
