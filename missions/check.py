@@ -135,7 +135,7 @@ def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKin
     if not mission.name:
         mission = mission.model_copy(update={"name": path.stem})
     registry = registry or Registry.default()
-    kinds = kinds or NodeKinds.default()
+    kinds = kinds or NodeKinds.default(mission.nodes)
     checked = Checked(path, loaded, mission, [], registry=registry, kinds=kinds)
     _check_keys(mission, checked, out)
     _check_robot(mission, path, registry, out)
@@ -306,7 +306,7 @@ def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
 
 def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
     from botstage.robots.gridmap import MapError, load
-    from botstage.robots.sim.backend import known_maps, map_path
+    from botstage.robots.gridmap import known_maps, map_path
 
     assert mission.world is not None
     found = map_path(mission.world, path.parent)

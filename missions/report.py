@@ -178,7 +178,7 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     import matplotlib.pyplot as plt
     import numpy as np
     from botstage.robots.gridmap import FREE, OCCUPIED, load
-    from botstage.robots.sim.backend import map_path
+    from botstage.robots.gridmap import map_path
 
     found = map_path(mission.world, checked.path.parent)
     assert found is not None

@@ -51,7 +51,6 @@ from typing import Annotated, Any, Literal
 
 from botstage.behaviors.blackboard import MissingKeyError
 from botstage.behaviors.suggest import did_you_mean
-from botstage.missions.gallery.service import set_gallery
 from botstage.missions.loader import Loaded, Location, Problem, load
 from botstage.missions.mocks import Call, Rule, Write, calls_of, mock_of
 from botstage.missions.replay import from_trace
@@ -59,6 +58,7 @@ from botstage.missions.runner import MissionInvalid, RunError, StopRun, run
 from botstage.missions.scenario_check import MissionFacts, check_against_mission, mission_facts
 from botstage.missions.session.observers import EventRecorder
 from botstage.missions.session.session import RunSession
+from botstage.missions.session.uploads import set_gallery
 from botstage.missions.steering import drive_one_step, stop_everything
 from botstage.skills.base import Skill
 from botstage.skills.expression import EvaluationError, compile_expression

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 from botstage.robots.backend import ENTRY_POINT_GROUP, Backend, BackendError, BackendKind, BackendOptions, OpenRequest
-from botstage.robots.plugins import PluginProblem, discover
+from botstage.robots.plugins import PluginProblem, discover, missing_extra
 
 if TYPE_CHECKING:
     from botstage.robots.backend_options import OptionSources
@@ -22,9 +22,6 @@ if TYPE_CHECKING:
 
 BUILTIN = (
     "botstage.robots.sim.kind:SimKind",
-    "botstage.robots.emulators.kind:EmulatorKind",
-    "botstage.robots.drivers.kind:HardwareKind",
-    "botstage.robots.ros2.backend:Ros2Kind",
 )
 DEFAULT = "sim"
 
@@ -94,6 +91,9 @@ class BackendRegistry:
             return self._kinds[name]
         except KeyError:
             close = difflib.get_close_matches(name, list(self._kinds), n=1, cutoff=0.6)
+            lacking = missing_extra(self.problems, name)
+            if lacking:
+                raise BackendError(f"backend {name!r} is in {lacking}") from None
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise BackendError(f"unknown backend {name!r}{hint}; installed: {self.listing()}") from None
 

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import yaml
 from botstage.robots.limits import MAX_IMAGE_BYTES
-from botstage.robots.located_yaml import FileRefused, NotText, YamlProblem, load_data, read_bytes
+from botstage.robots.located_yaml import FileRefused, NotText, YamlProblem, find_yaml, load_data, read_bytes
 
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 MODES = ("trinary", "scale", "raw")
@@ -290,3 +290,15 @@ def load_places(path: Path, grid: GridMap) -> dict[str, tuple[float, float, floa
             raise MapError(path, f"places.{name}", f"({x:g}, {y:g}) is not on a free cell of the map")
         found[str(name)] = (x, y, yaw)
     return found
+
+
+MAPS_DIR = Path(__file__).resolve().parent / "maps"  # the maps botstage ships
+
+
+def known_maps() -> list[str]:
+    return sorted(p.stem for p in MAPS_DIR.glob("*.yaml") if not p.name.endswith(".places.yaml"))
+
+
+def map_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
+    """The map a mission's `world:` names: a shipped map's name, or a map YAML's path."""
+    return find_yaml(name_or_path, MAPS_DIR, known_maps(), relative_to)

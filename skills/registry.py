@@ -15,7 +15,7 @@ import difflib
 import importlib
 from collections.abc import Iterable, Iterator
 
-from botstage.robots.plugins import PluginProblem, discover
+from botstage.robots.plugins import PluginProblem, discover, missing_extra
 from botstage.skills.base import Skill
 
 __all__ = ["ENTRY_POINT_GROUP", "PluginProblem", "Registry", "UnknownSkillError", "suggest"]
@@ -34,10 +34,8 @@ BUILTIN_MODULES = (
     "botstage.skills.approach",
     "botstage.skills.detect_crowd",
     "botstage.skills.recoveries",
-    "botstage.skills.converse",
     "botstage.skills.speak",
     "botstage.skills.upload",
-    "botstage.skills.listen",
     "botstage.skills.photo",
     "botstage.skills.display",
     "botstage.skills.wait_for",
@@ -49,9 +47,12 @@ BUILTIN_MODULES = (
 
 
 class UnknownSkillError(LookupError):
-    def __init__(self, name: str, known: Iterable[str]) -> None:
+    def __init__(self, name: str, known: Iterable[str], lacking: str = "") -> None:
         self.name = name
-        self.suggestion = suggest(name, known)
+        self.suggestion = None if lacking else suggest(name, known)
+        if lacking:  # the plug-in set that has it is not installed: say which and how
+            super().__init__(f"skill {name!r} is in {lacking}")
+            return
         hint = f" (did you mean {self.suggestion!r}?)" if self.suggestion else ""
         super().__init__(f"unknown skill {name!r}{hint}")
 
@@ -118,7 +119,7 @@ class Registry:
         try:
             return self._skills[name]
         except KeyError:
-            raise UnknownSkillError(name, self._skills) from None
+            raise UnknownSkillError(name, self._skills, missing_extra(self.problems, name)) from None
 
     def origin(self, name: str) -> str:
         return self._origin[name]

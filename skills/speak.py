@@ -13,7 +13,7 @@ from typing import Literal
 
 from botstage.robots.interfaces import AudioSpeaker
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
-from botstage.skills.chat.tts import MAYA_VOICE, Speech, SpeechError, espeak_ng, synthesise
+from botstage.skills.tts import MAYA_VOICE, Speech, SpeechError, espeak_ng, synthesise
 from pydantic import BaseModel, ConfigDict, Field
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from botstage.robots.ax12 import RAD_PER_UNIT
 from botstage.robots.drivers.dynamixel_servo import (
     ACTION,
     ADDR_CCW_LIMIT,
@@ -32,7 +33,6 @@ from botstage.robots.drivers.dynamixel_servo import (
     ADDR_TORQUE_LIMIT,
     BROADCAST_ID,
     PING,
-    RAD_PER_UNIT,
     READ,
     REG_WRITE,
     RESET,

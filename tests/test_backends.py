@@ -14,7 +14,8 @@ from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import PROFILES_DIR, load_profile
-from botstage.robots.sim.backend import SimBackend, map_path
+from botstage.robots.sim.backend import SimBackend
+from botstage.robots.gridmap import map_path
 from botstage.robots.sim.kind import SimKind
 from pydantic import Field
 

@@ -38,17 +38,18 @@ from botstage.missions.cli.distributed import free_port, process_commands
 from botstage.missions.deployment import OPERATOR, check_deployment
 from botstage.missions.distributed.operator import Operator
 from botstage.missions.distributed.supervisor import Supervisor
-from botstage.missions.places import robot_place
 from botstage.missions.runner import run
-from botstage.missions.teleop import Teleop, open_served, run_teleop
 from botstage.robots.clock import SimClock, WallClock
 from botstage.robots.interfaces import OdometryReading, Twist2D
+from botstage.robots.places import robot_place
 from botstage.robots.ros2 import readings
 from botstage.robots.ros2.certs import Credentials, make_certificates
 from botstage.robots.ros2.node import Ros2Node
 from botstage.robots.ros2.security import security_options
+from botstage.robots.ros2.teleop import open_served
 from botstage.robots.ros2.topics import routes
 from botstage.robots.sim.backend import SimBackend
+from botstage.robots.teleop import Teleop, run_teleop
 
 from tests.test_ros2_interop import listening_node
 

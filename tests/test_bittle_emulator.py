@@ -22,7 +22,7 @@ from botstage.robots.emulators.nyboard import NyBoardEmulator
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.sim.backend import map_path
+from botstage.robots.gridmap import map_path
 
 from tests.launchpad_helpers import wait_until
 

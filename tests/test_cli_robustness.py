@@ -15,12 +15,12 @@ import time
 from pathlib import Path
 
 import pytest
-from botstage.missions.fault_console import apply_fault
-from botstage.missions.places import robot_place
 from botstage.missions.scenario import load_scenario
 from botstage.missions.scenario_suite import run_in_folder
 from botstage.missions.session.result import exit_status
+from botstage.robots.emulators.fault_console import apply_fault
 from botstage.robots.emulators.launchpad import MAX_GARBAGE, LaunchpadEmulator
+from botstage.robots.places import robot_place
 from botstage.robots.sim.world import World
 
 ROOT = Path(__file__).resolve().parent.parent

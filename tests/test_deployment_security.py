@@ -37,9 +37,9 @@ from botstage.missions.distributed.security import (
     secured,
     session_options,
 )
-from botstage.missions.places import robot_place
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import Twist2D
+from botstage.robots.places import robot_place
 from botstage.robots.ros2 import readings, types
 from botstage.robots.ros2.certs import Credentials, make_certificates
 from botstage.robots.ros2.node import Ros2Node

@@ -13,20 +13,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from botstage.robots.ax12 import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, angle_to_raw, raw_to_angle, speed_to_raw
 from botstage.robots.drivers.dynamixel_servo import (
     ADDR_CCW_LIMIT,
     ADDR_CW_LIMIT,
     ADDR_SPEED,
     ADDR_TORQUE_LIMIT,
-    RAD_PER_UNIT,
-    RAD_S_PER_SPEED_UNIT,
     DynamixelError,
     DynamixelServo,
     WrongModelError,
-    angle_to_raw,
     decode_error,
-    raw_to_angle,
-    speed_to_raw,
 )
 from botstage.robots.emulators.ax12 import Ax12Emulator
 

@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 from botstage.missions.check import check
 from botstage.missions.runner import run
+from botstage.robots.ax12 import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, speed_to_raw
 from botstage.robots.backend import OpenRequest, ScriptedWalk
 from botstage.robots.backend_options import OptionSources
 from botstage.robots.backend_registry import BackendError, BackendRegistry
 from botstage.robots.clock import SimClock
-from botstage.robots.drivers.dynamixel_servo import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, speed_to_raw
 from botstage.robots.emulators.ax12 import Ax12Emulator
 from botstage.robots.emulators.pan_head import PanHeadEmulatorBackend
 from botstage.robots.gridmap import load

@@ -27,7 +27,8 @@ from botstage.robots.emulators.backend import EmulatorBackend
 from botstage.robots.emulators.launchpad import LaunchpadEmulator
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D, check_interfaces
-from botstage.robots.sim.backend import map_path, populated_world
+from botstage.robots.sim.backend import populated_world
+from botstage.robots.gridmap import map_path
 
 from tests.launchpad_helpers import FAILSAFE_S, Delivered, chefbot, wait_until
 

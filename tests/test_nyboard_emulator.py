@@ -30,7 +30,7 @@ from botstage.robots.emulators.nyboard import (
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.sim.backend import map_path
+from botstage.robots.gridmap import map_path
 from botstage.robots.sim.world import World
 
 from tests.launchpad_helpers import FAILSAFE_S, wait_until

@@ -27,9 +27,9 @@ from typing import Any
 import pytest
 import typer
 from botstage.missions.cli.serve import profile_name, serve_app
-from botstage.missions.places import robot_place
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import OdometryReading, Twist2D
+from botstage.robots.places import robot_place
 from botstage.robots.profile import load_profile
 from botstage.robots.ros2 import readings, types
 from botstage.robots.ros2.node import Ros2Node

@@ -339,7 +339,7 @@ class Mission:
     def _runnable(self, name: str) -> dict[str, Any]:
         """The data to run from a file elsewhere: named, its robot and world paths made absolute."""
         from botstage.robots.profile import known_profiles, profile_path
-        from botstage.robots.sim.backend import known_maps, map_path
+        from botstage.robots.gridmap import known_maps, map_path
 
         data = {"name": name, **self.to_dict()}
         for field, find, shipped in (("robot", profile_path, known_profiles), ("world", map_path, known_maps)):

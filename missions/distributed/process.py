@@ -38,12 +38,12 @@ from botstage.missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, che
 from botstage.missions.distributed.clock import ClockPublisher
 from botstage.missions.distributed.operator import Operator
 from botstage.missions.distributed.security import SecurityError, secured, session_options
-from botstage.missions.gallery.service import fill_counters
 from botstage.missions.runner import run
 from botstage.missions.session.errors import RunError
 from botstage.missions.session.plugins import service_registry
 from botstage.missions.session.result import RunResult
 from botstage.missions.session.session import RunSession
+from botstage.missions.session.uploads import fill_counters
 from botstage.robots.backend import BackendError, BackendKind, BackendOptions, OpenRequest
 from botstage.robots.backend_registry import BackendRegistry, open_kind
 from botstage.robots.clock import SimClock, WallClock

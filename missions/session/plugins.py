@@ -32,7 +32,6 @@ BUILTIN_SERVICES = (
     "uploads = botstage.missions.session.services:UploadsService",
     "files = botstage.missions.session.services:FilesService",
     "orders = botstage.missions.session.services:OrdersService",
-    "gesture = botstage.missions.session.services:GestureService",
 )
 
 Factory = Callable[[], Any]

@@ -9,8 +9,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from botstage.missions.gallery.service import fill_counters, run_uploads
 from botstage.missions.services import RobotServices
+from botstage.missions.session.uploads import fill_counters, run_uploads
 from botstage.skills.delivery.inbox import OrderInbox
 from botstage.skills.files import RunFiles
 
@@ -60,7 +60,7 @@ class UploadsService:
         self.uploads: Uploads | None = None
 
     def open(self, session: RunSession) -> Mapping[str, Any]:
-        self.uploads = run_uploads(session.folder, session.clock, session.seed)
+        self.uploads = run_uploads(session.folder, session.clock, session.seed, session.interfaces)
         return {"uploads": self.uploads}
 
     def after_tick(self, session: RunSession) -> None:
@@ -105,23 +105,3 @@ class OrdersService:
 
     def close(self) -> None:
         """Nothing to release: orders are files, read when a skill asks."""
-
-
-class GestureService:
-    """gesture: the book's IMU glove (missions/gesture_glove.py), opened only when a skill reads it."""
-
-    name = "gesture"
-
-    def __init__(self) -> None:
-        self.glove: Any = None
-
-    def open(self, session: RunSession) -> Mapping[str, Any]:
-        from botstage.missions.gesture_glove import glove_for
-
-        self.glove = glove_for(session.clock)
-        return {"gesture": self.glove}
-
-    def close(self) -> None:
-        close = getattr(self.glove, "close", None)
-        if close is not None:
-            close()

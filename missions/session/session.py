@@ -44,12 +44,11 @@ from botstage.robots.backend import Backend, BackendError, BackendKind, BackendO
 from botstage.robots.backend_options import OptionSources, resolve
 from botstage.robots.backend_registry import DEFAULT, BackendRegistry, open_kind
 from botstage.robots.clock import Clock, SimClock, WallClock
-from botstage.robots.gridmap import GridMap
+from botstage.robots.gridmap import GridMap, known_maps, map_path
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.located_yaml import Locations, Problem
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.sim.backend import known_maps, map_path
 from botstage.skills.registry import Registry
 from py_trees.common import Status
 

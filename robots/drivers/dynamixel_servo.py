@@ -74,6 +74,19 @@ from dataclasses import dataclass
 from typing import Any
 
 import serial
+from botstage.robots.ax12 import (  # the servo's units and conversions, shared with the simulator
+    BAUD,
+    CENTRE,
+    DIRECTION_BIT,
+    JOINT_SPEED,
+    LIMITS,
+    POSITION_MAX,
+    RAD_S_PER_SPEED_UNIT,
+    SPEED_MAX,
+    angle_to_raw,
+    raw_to_angle,
+    speed_to_raw,
+)
 from botstage.robots.drivers.serial_link import RateLimitedLog
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
@@ -150,23 +163,6 @@ ERROR_BITS = {
     "instruction": 0x40,
 }
 
-# units (e-manual; dynamixel_motor's dynamixel_const and serial proxy)
-POSITION_MAX = 1023
-POSITION_RESOLUTION = 1024  # dynamixel_const's encoder_resolution for the AX-12
-RANGE_RAD = math.radians(300.0)
-RAD_PER_UNIT = RANGE_RAD / POSITION_RESOLUTION  # about 0.00511 rad (0.29°)
-RPM_PER_SPEED_UNIT = 0.111
-RPM_TO_RAD_S = 2 * math.pi / 60
-RAD_S_PER_SPEED_UNIT = RPM_PER_SPEED_UNIT * RPM_TO_RAD_S  # about 0.01162 rad/s
-SPEED_MAX = 1023
-DIRECTION_BIT = 0x400  # Present Speed / Present Load: set when turning (loaded) clockwise
-
-# the book's pan.yaml
-CENTRE = 512
-LIMITS = (316, 708)
-JOINT_SPEED = 1.17  # rad/s
-BAUD = 1_000_000
-
 MAX_RETRIES = 10
 MAX_LATENCY_MS = 1000.0
 READ_WAIT_S = 0.001  # pyserial's read timeout inside the SDK's polling loop (the SDK's own 0 spins)
@@ -181,24 +177,6 @@ def checksum(body: bytes | bytearray) -> int:
     """Protocol 1.0's checksum: the ones' complement of the byte sum of ID, length, instruction or
     error and parameters (the lower byte)."""
     return ~sum(body) & 0xFF
-
-
-def speed_to_raw(rad_s: float) -> int:
-    """A joint speed (rad/s) to Moving Speed units, 1..1023: 0 would mean the motor's maximum."""
-    if not (math.isfinite(rad_s) and rad_s > 0):
-        raise ValueError(f"joint speed {rad_s} rad/s: a finite speed above 0")
-    return max(1, min(SPEED_MAX, round(rad_s / RAD_S_PER_SPEED_UNIT)))
-
-
-def angle_to_raw(angle: float, centre: int = CENTRE, flipped: bool = False) -> int:
-    """Radians from the centre (counter-clockwise positive) to position units, not clamped."""
-    ticks = angle / RAD_PER_UNIT
-    return round(centre - ticks if flipped else centre + ticks)
-
-
-def raw_to_angle(raw: float, centre: int = CENTRE, flipped: bool = False) -> float:
-    """Position units to radians from the centre (counter-clockwise positive)."""
-    return (centre - raw if flipped else raw - centre) * RAD_PER_UNIT
 
 
 def signed_magnitude(value: int) -> int:

@@ -18,9 +18,10 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from botstage.robots.ax12 import BAUD
 from botstage.robots.backend import Fault
 from botstage.robots.clock import Clock
-from botstage.robots.drivers.dynamixel_servo import BAUD, DynamixelError, DynamixelServo
+from botstage.robots.drivers.dynamixel_servo import DynamixelError, DynamixelServo
 from botstage.robots.gridmap import GridMap
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, ServoJoint

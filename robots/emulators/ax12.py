@@ -91,6 +91,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from botstage.robots.ax12 import CENTRE, DIRECTION_BIT, POSITION_MAX, RAD_PER_UNIT, RPM_PER_SPEED_UNIT, SPEED_MAX
 from botstage.robots.drivers.dynamixel_servo import (
     ACTION,
     ADDR_ALARM_LED,
@@ -121,20 +122,14 @@ from botstage.robots.drivers.dynamixel_servo import (
     ADDR_TORQUE_LIMIT,
     AX12_MODEL,
     BROADCAST_ID,
-    CENTRE,
-    DIRECTION_BIT,
     ERROR_BITS,
     INSTRUCTIONS,
     MAX_ID,
     PING,
-    POSITION_MAX,
-    RAD_PER_UNIT,
     RAM_START,
     READ,
     REG_WRITE,
     RESET,
-    RPM_PER_SPEED_UNIT,
-    SPEED_MAX,
     SYNC_WRITE,
     TABLE_SIZE,
     WRITE,

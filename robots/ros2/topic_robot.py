@@ -221,7 +221,7 @@ class Ros2Backend:
 
 def joint_limits(spec: Device) -> tuple[float, float]:
     """A pan's limits in rad from its profile joint (the AX-12A's units: 300 deg over 1024)."""
-    from botstage.robots.drivers.dynamixel_servo import raw_to_angle
+    from botstage.robots.ax12 import raw_to_angle
 
     joint = spec.joint
     if joint is None:

@@ -34,18 +34,8 @@ from botstage.robots.sim.trajectory import Trajectory
 from botstage.robots.sim.voices import Voices
 from botstage.robots.sim.world import Bump, World
 
-MAPS_DIR = Path(__file__).resolve().parent.parent / "maps"
 WHEEL_SLIP = 0.02  # the World's default: wheels on a hard floor
 LEGGED_SLIP = 0.05  # decision: feet slip and gaits vary step to step more than wheels
-
-
-def known_maps() -> list[str]:
-    return sorted(p.stem for p in MAPS_DIR.glob("*.yaml") if not p.name.endswith(".places.yaml"))
-
-
-def map_path(name_or_path: str, relative_to: Path | None = None) -> Path | None:
-    """The map a mission's `world:` names: a shipped map's name, or a map YAML's path."""
-    return find_yaml(name_or_path, MAPS_DIR, known_maps(), relative_to)
 
 
 def populated_world(

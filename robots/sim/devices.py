@@ -431,7 +431,7 @@ class SimPan:
     """
 
     def __init__(self, world: World, joint: ServoJoint) -> None:
-        from botstage.robots.drivers import dynamixel_servo as ax  # the servo's units and conversions, one place
+        from botstage.robots import ax12 as ax  # the servo's units and conversions, one place
 
         self.world = world
         self.joint = joint

@@ -9,7 +9,7 @@ from botstage.robots.gridmap import GridMap, MapError
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.sim.backend import map_path
+from botstage.robots.gridmap import map_path
 
 
 class PlaceError(Exception):

@@ -4,12 +4,17 @@ The runner's whole upload hook: ``run_uploads`` gives the ``uploads`` interface.
 or starts until an upload skill records its first photo; then, if its settings name no
 endpoint, a gallery starts on a free loopback port serving ``gallery/`` in the run folder
 (with the token of ``$BOTSTAGE_GALLERY_TOKEN`` if set), and the outbox opens in ``outbox/``.
+
+The gallery server itself is the web set's (``botstage[web]``): its ``gallery`` run service gives
+the function that starts one as the ``gallery_server`` interface, so the core never imports it.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from botstage.robots.clock import Clock
 from botstage.skills.outbox.service import Uploads
@@ -23,9 +28,7 @@ class RunGallery:
     """The gallery a run starts for itself; a scenario can take it down and bring it back (same
     port, same folder), to see that uploads wait and resume without losing or repeating a photo."""
 
-    def __init__(self, folder: Path) -> None:
-        from botstage.missions.gallery.server import start_gallery  # FastAPI and uvicorn load only when used
-
+    def __init__(self, folder: Path, start_gallery: Callable[..., Any]) -> None:
         self._start = start_gallery
         self.folder = folder
         self.token = os.environ.get(TOKEN_ENV) or None
@@ -50,8 +53,23 @@ class RunGallery:
         self.down()
 
 
-def run_uploads(folder: Path, clock: Clock, seed: int) -> Uploads:
-    return Uploads(folder, clock, seed=seed, local_gallery=lambda: RunGallery(folder / "gallery"))
+GALLERY_SERVER = "gallery_server"  # the interface the web set's `gallery` service gives
+
+
+def run_uploads(folder: Path, clock: Clock, seed: int, interfaces: dict[str, Any]) -> Uploads:
+    """The ``uploads`` interface; its own gallery starts through ``interfaces``' gallery server
+    (looked up when the first photo needs it: every service has opened by then)."""
+
+    def local_gallery() -> RunGallery:
+        start = interfaces.get(GALLERY_SERVER)
+        if start is None:
+            raise LookupError(
+                "the run's own gallery needs botstage's web set: pip install 'botstage[web]' "
+                "(or name an endpoint: skill_params: {upload: {endpoint: URL}})"
+            )
+        return RunGallery(folder / "gallery", start)
+
+    return Uploads(folder, clock, seed=seed, local_gallery=local_gallery)
 
 
 def set_gallery(uploads: Uploads, up: bool) -> None:
