@@ -91,9 +91,9 @@ def test_machine_of_a_mission_without_one_draws_its_tree() -> None:
     assert result.stdout.startswith("main: sequence")
 
 
-def test_readme_step_3_lists_the_formats_both_verbs_draw() -> None:
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
-    listed = readme.split("Formats: ", 1)[1].split(".", 1)[0]
+def test_getting_started_lists_the_formats_both_verbs_draw() -> None:
+    page = (Path(__file__).resolve().parent.parent / "docs" / "getting-started.md").read_text()
+    listed = page.split("Formats: ", 1)[1].split(".", 1)[0]
     assert tuple(f.strip() for f in listed.replace("\n", " ").split(",")) == FORMATS
 
 

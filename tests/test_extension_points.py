@@ -1,8 +1,8 @@
-"""The README's plug-in package, installed by pip as a real wheel, adds a skill, a decorator, a
-composite, a backend and a run observer through entry points only; without touching botstage,
-`validate` checks the new kinds' options at their file:line:col, `schema` includes them, `tree`
-and `machine` draw them, coverage counts them, `run --backend` opens the backend, and the
-observer sees every trace event of the run."""
+"""The extension guide's plug-in package (docs/guides/extending.md), installed by pip as a real
+wheel, adds a skill, a decorator, a composite, a backend and a run observer through entry points
+only; without touching botstage, `validate` checks the new kinds' options at their
+file:line:col, `schema` includes them, `tree` and `machine` draw them, coverage counts them,
+`run --backend` opens the backend, and the observer sees every trace event of the run."""
 
 from __future__ import annotations
 
@@ -63,9 +63,8 @@ expect:
 
 
 def readme_package() -> tuple[dict[str, str], str]:
-    """The README's `# my_kit/*.py` code blocks, and its entry points as entry_points.txt."""
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = readme.split("## Writing a skill, a node kind, a backend", 1)[1].split("\n## ", 1)[0]
+    """The extension guide's `# my_kit/*.py` code blocks, and its entry points as entry_points.txt."""
+    section = (ROOT / "docs" / "guides" / "extending.md").read_text(encoding="utf-8")
     files = {}
     for block in re.findall(r"```python\n(.*?)```", section, re.S):
         first, _, body = block.partition("\n")
