@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import py_trees
+from pydantic import ValidationError
+
 from botstage.behaviors.blackboard import BlackboardError, normalise_key
 from botstage.behaviors.builder import Builder, KeyUsage, SpecError, SpecPath
 from botstage.behaviors.engine import Engine
@@ -33,10 +35,10 @@ from botstage.missions.schema import Mission, key_spec, parse_type
 from botstage.robots.clock import SimClock
 from botstage.skills.base import check_type, plain_type, type_name
 from botstage.skills.registry import Registry
-from pydantic import ValidationError
 
 if typing.TYPE_CHECKING:
     from botstage.robots.gridmap import GridMap
+    from botstage.robots.profile import Profile
 
 
 @dataclass
@@ -251,6 +253,7 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
             profile, problems, loaded = load_profile(found)
             out.problems.extend(problems)
             if profile is not None:
+                _check_backend_sections(profile, loaded.locations, out)
                 for skill, params in profile.skills.items():
                     where = loaded.locations.find(("skills", skill))
                     if skill not in registry:
@@ -269,6 +272,24 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
         out.at(("walks",), "walking people need a world to walk in")
     elif mission.world is not None:
         _check_world(mission, path, out)
+
+
+def _check_backend_sections(profile: Profile, locations: Locations, out: _Collector) -> None:
+    """A profile's backend sections (``ros2:``) are checked by their backend, found by name; a
+    section whose backend is not installed says which plug-in set has it."""
+    from botstage.robots.backend import BackendError
+    from botstage.robots.backend_registry import BackendRegistry
+
+    for section in ("ros2",):
+        if getattr(profile, section).model_dump(exclude_defaults=True) == {}:
+            continue
+        try:
+            kind = BackendRegistry.default().get(section)
+        except BackendError as exc:
+            out.problems.append(Problem(locations.find((section,)), f"{section}: {exc}"))
+            continue
+        for where, message, hint in kind.check_profile(profile):
+            out.problems.append(Problem(locations.find(where), message, hint))
 
 
 def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
@@ -305,8 +326,7 @@ def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
 
 
 def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
-    from botstage.robots.gridmap import MapError, load
-    from botstage.robots.gridmap import known_maps, map_path
+    from botstage.robots.gridmap import MapError, known_maps, load, map_path
 
     assert mission.world is not None
     found = map_path(mission.world, path.parent)

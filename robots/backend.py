@@ -123,6 +123,13 @@ class BackendKind:
         """The open backend; ``ValueError``/``ConnectionError``/``OSError`` say why it cannot open."""
         raise NotImplementedError
 
+    profile_section: ClassVar[str] = ""  # the profile's section this backend reads, if any (``ros2``)
+
+    def check_profile(self, profile: Profile) -> list[tuple[tuple[str, ...], str, str]]:
+        """Problems with this backend's own section of ``profile``: (where under the profile,
+        message, hint). The core checks a profile's shape; each backend checks what it reads."""
+        return []
+
     def describe(self) -> dict[str, Any]:
         """Name, description, clock and options (with their types, defaults and descriptions)."""
         options = {}

@@ -20,12 +20,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
 from botstage.robots import PROFILES_DIR
 from botstage.robots.gaits import Gaits
 from botstage.robots.interfaces import INTERFACES
 from botstage.robots.located_yaml import Loaded, Problem, find_yaml, load_document
-from botstage.robots.ros2.topics import check_section
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 MOTION_LIMITS = ("max_linear_accel", "max_angular_accel", "max_linear_decel")  # what a fixed base may not give
 LEGGED_STAND_IN = (0.05, 1000)  # a legged base's wheel diameter (m) and ticks per turn, in the simulator only
@@ -197,7 +197,8 @@ class Control(_Strict):
 
 class Ros2Section(_Strict):
     """How the robot appears on a ROS 2 graph: topic names and publish rates by channel
-    (robots/ros2/topics.py lists the channels and ROS's defaults: cmd_vel, odom, scan, ...)."""
+    (robots/ros2/topics.py lists the channels and ROS's defaults: cmd_vel, odom, scan, ...). The
+    ``ros2`` backend checks this section (``BackendKind.check_profile``), not the core."""
 
     topics: dict[str, str] = Field(default_factory=dict, description="topic name by channel, e.g. {laser: base_scan}")
     rates_hz: dict[str, Annotated[float, Field(gt=0)]] = Field(
@@ -312,8 +313,6 @@ def load_profile(path: str | Path) -> tuple[Profile | None, list[Problem], Loade
         if device.range_min is not None and device.range_max is not None and device.range_min >= device.range_max:
             at(("interfaces", name, "range_min"), "must be below range_max")
         _check_joints(name, device, profile, at)
-    for where, message, hint in check_section(profile.ros2.topics, profile.ros2.rates_hz, list(profile.interfaces)):
-        problems.append(Problem(loaded.locations.find(("ros2", *where)), f"ros2: {message}", hint))
     if profile.name != Path(path).stem and Path(path).parent == PROFILES_DIR:
         at(("name",), f"a shipped profile's name is its file's name ({Path(path).stem!r})")
     return (profile if not problems else None), problems, loaded

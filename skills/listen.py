@@ -16,11 +16,13 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
+from pydantic import BaseModel, Field
+
 from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
-from botstage.skills.speech.recognizer import COMMANDS, MODES, Recognition, recognizer_named
+from botstage.skills.speech.recognizer import COMMANDS, MODES, Recognition
+from botstage.skills.speech.recognizers import recognizer_named
 from botstage.skills.speech.vad import VoiceActivityDetector
 from botstage.skills.speech.wav import RATE
-from pydantic import BaseModel, Field
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9

@@ -14,17 +14,17 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
+
+from botstage.missions.distributed.names import lockstep_service
 from botstage.missions.distributed.process import (
     LOCKSTEP_TYPE,
     RECHECK_S,
     Lockstep,
     LockstepObserver,
-    lockstep_service,
 )
 from botstage.robots.clock import SimClock
 from botstage.robots.ros2.node import Ros2Node
 from botstage.skills.remote.protocol import State, TickReply, reply_fields, reply_of
-
 from tests.test_ros2_interop import listening_node
 
 FAILSAFE_S = 30.0

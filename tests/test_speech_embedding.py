@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from botstage.missions.bench import bench_speech, train_speech
+
 from botstage.skills.speech.embedding import (
     CLASSES,
     MODEL_SHA256,
@@ -24,9 +24,11 @@ from botstage.skills.speech.embedding import (
     shared_embedding_recognizer,
     weights_path,
 )
-from botstage.skills.speech.recognizer import COMMANDS, Recognizer, recognizer_named
+from botstage.skills.speech.recognizer import COMMANDS, Recognizer
+from botstage.skills.speech.recognizers import recognizer_named
 from botstage.skills.speech.recording import recognize_recording
 from botstage.skills.speech.wav import read_wav
+from tests.bench import bench_speech, train_speech
 
 DATA = Path(__file__).parent / "data" / "speech"
 
@@ -86,7 +88,7 @@ def test_training_keeps_the_benchmark_and_tuning_sets_out() -> None:
 def test_a_training_clip_is_heard_four_ways_the_same_every_time() -> None:
     """One clip through the training path: COPIES utterances of float16 embedding vectors, the
     first over the room's noise as the benchmark's clean condition, all seeded (a rerun of
-    `botstage speech train` makes the same data)."""
+    `python -m tests.bench train-speech` makes the same data)."""
     needs_espeak()
     job = ("cancel", train_speech.training_voices()[0], 160, 42, 1_000_001)
     first, again = train_speech._features(job), train_speech._features(job)
@@ -216,7 +218,7 @@ def test_phrases_in_unheard_voices_are_not_taken_for_commands() -> None:
 
 
 def test_thresholds_chosen_again_keep_the_network(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """`botstage speech train --thresholds-only`: the tuning set decides the thresholds, the weights stay."""
+    """`python -m tests.bench train-speech --thresholds-only`: the tuning set decides the thresholds; weights stay."""
     path = tmp_path / "commands.npz"
     shutil.copy(weights_path(), path)
     before = Classifier.load(path)
@@ -238,6 +240,9 @@ def test_thresholds_chosen_again_keep_the_network(tmp_path: Path, monkeypatch: p
 
 def test_thresholds_only_needs_weights_to_keep(tmp_path: Path) -> None:
     missing = tmp_path / "none.npz"
-    command = [sys.executable, "-c", "from missions.cli import app; app()", "speech", "train", "--thresholds-only"]
-    result = subprocess.run([*command, "--out", str(missing)], capture_output=True, text=True, timeout=120)
+    command = [sys.executable, "-m", "tests.bench", "train-speech", "--thresholds-only"]
+    checkout = Path(__file__).resolve().parent.parent
+    result = subprocess.run(
+        [*command, "--out", str(missing)], capture_output=True, text=True, cwd=checkout, timeout=120
+    )
     assert result.returncode == 2 and f"no weights at {missing}" in result.stderr

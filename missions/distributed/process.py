@@ -34,8 +34,10 @@ from types import SimpleNamespace
 from typing import Any
 
 import zenoh
+
 from botstage.missions.deployment import ROUTER_ENDPOINT, CheckedDeployment, check_deployment
 from botstage.missions.distributed.clock import ClockPublisher
+from botstage.missions.distributed.names import lockstep_service
 from botstage.missions.distributed.operator import Operator
 from botstage.missions.distributed.security import SecurityError, secured, session_options
 from botstage.missions.runner import run
@@ -75,10 +77,6 @@ STEP, FINISH = 0, 1
 
 class DeploymentError(RuntimeError):
     """A deployment that cannot run as asked (its problems were printed by the caller)."""
-
-
-def lockstep_service(process: str) -> str:
-    return f"/{process}/lockstep"
 
 
 @dataclass

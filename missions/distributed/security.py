@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from botstage.missions.deployment import OPERATOR, CheckedDeployment
+from botstage.missions.distributed.names import lockstep_service
 from botstage.robots.remote.ros2_link import call_service, describe_service
 from botstage.robots.ros2.certs import PROCESS_CERT, Credentials
 from botstage.robots.ros2.names import fully_qualified_name
@@ -83,8 +84,6 @@ def command_topics(checked: CheckedDeployment) -> list[str]:
 
 def deployment_policy(checked: CheckedDeployment) -> AccessPolicy:
     """Who may call and publish what in this deployment (see the module's docstring)."""
-    from botstage.missions.distributed.process import lockstep_service  # it imports this module
-
     deployment = checked.deployment
     assert deployment is not None
     mission = checked.mission_process

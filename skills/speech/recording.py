@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from botstage.skills.speech.recognizer import CommandRecognizer
 from botstage.skills.speech.vad import find_utterances
 

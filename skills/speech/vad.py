@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from botstage.skills.speech.wav import RATE
 
 FRAME = 320  # 20 ms
