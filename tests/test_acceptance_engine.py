@@ -7,11 +7,11 @@ import time
 
 import pytest
 from botstage.behaviors.engine import Engine
-from botstage.missions.bench.bench_tick import timeouts_spec
 from botstage.robots.clock import SimClock
 from botstage.skills.registry import Registry
 from py_trees.common import Status
 
+from tests.bench.bench_tick import timeouts_spec
 from tests.conftest import TEST_SKILLS
 
 TREES = {
@@ -139,7 +139,7 @@ def test_ten_thousand_ticks_of_sixty_second_timeouts_never_touch_the_wall_clock(
 ) -> None:
     """10,000 ticks at 10 Hz are 1,000 s of mission time; 60 s timeouts fire on schedule.
 
-    How long this takes in wall time is a figure of `botstage bench tick` (`simclock_timeouts`;
+    How long this takes in wall time is a figure of `python -m tests.bench tick` (`simclock_timeouts`;
     no timed assertions in tests); here we prove the structural reason it is fast: nothing ever
     sleeps or reads real time.
     """

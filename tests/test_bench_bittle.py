@@ -1,4 +1,4 @@
-"""`botstage bench bittle --quick`: every figure is there and a number; timings are never asserted on."""
+"""`python -m tests.bench bittle --quick`: every figure is there and a number; timings are never asserted on."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ BENCHES = ["bittle_parser", "bittle_token_latency", "pty_floor", "bittle_ack_rou
 
 
 def test_the_bench_reports_every_figure() -> None:
-    command = [sys.executable, "-m", "botstage.missions.cli", "bench", "bittle", "--quick"]
+    command = [sys.executable, "-m", "tests.bench", "bittle", "--quick"]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     rows = {

@@ -1,4 +1,4 @@
-"""`botstage bench facetracker --quick`: every figure is there and a number; timings are never asserted on."""
+"""`python -m tests.bench facetracker --quick`: every figure is there and a number; timings are never asserted on."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ BENCHES = ["facetracker_detection", "facetracker_walk", "facetracker_recentre"]
 
 
 def test_the_bench_reports_every_figure() -> None:
-    command = [sys.executable, "-m", "botstage.missions.cli", "bench", "facetracker", "--quick"]
+    command = [sys.executable, "-m", "tests.bench", "facetracker", "--quick"]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=900, check=False)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     rows = {

@@ -1,4 +1,4 @@
-"""`botstage bench zenoh` with tiny sample counts: every figure is there, a number, beside its
+"""`python -m tests.bench zenoh` with tiny sample counts: every figure is there, a number, beside its
 baseline; the table marks a missed target. Timings are never asserted on."""
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from botstage.missions.bench import bench_zenoh
+
+from tests.bench import bench_zenoh
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCHES = ["skill_call", "stream_scan", "stream_image", "stream_image_flat_out", "entertainer"]
@@ -21,7 +22,7 @@ def positive(*values: Any) -> bool:
 
 
 def test_the_bench_reports_every_figure_beside_its_baseline() -> None:
-    command = [sys.executable, "-m", "botstage.missions.cli", "bench", "zenoh", "--quick"]
+    command = [sys.executable, "-m", "tests.bench", "zenoh", "--quick"]
     command += ["--calls", "20", "--seconds", "0.3", "--until", "2"]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
@@ -84,7 +85,7 @@ def test_only_runs_the_benches_named() -> None:
     ]
     with pytest.raises(ValueError, match="unknown bench nope"):
         bench_zenoh.selected(["skill_call,nope"])
-    command = [sys.executable, "-m", "botstage.missions.cli", "bench", "zenoh", "--only", "skill_call", "--calls", "20"]
+    command = [sys.executable, "-m", "tests.bench", "zenoh", "--only", "skill_call", "--calls", "20"]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
     rows = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
     assert [row["bench"] for row in rows] == ["skill_call"], done.stdout[-3000:] + done.stderr[-3000:]

@@ -15,8 +15,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def botstage(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     exe = shutil.which("botstage")
-    command = [exe, *args] if exe else [sys.executable, "-c", "from missions.cli import app; app()", *args]
+    command = [exe, *args] if exe else [sys.executable, "-c", "from botstage.missions.cli import app; app()", *args]
     return subprocess.run(command, capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def bench(*args: str) -> subprocess.CompletedProcess[str]:
+    """A benchmark as a developer runs it from the checkout: `python -m tests.bench NAME`."""
+    return subprocess.run(
+        [sys.executable, "-m", "tests.bench", *args], capture_output=True, text=True, cwd=ROOT, timeout=300
+    )
 
 
 HELLO = str(ROOT / "missions" / "hello.yaml")
@@ -76,7 +83,7 @@ def test_skills_lists_the_builtin_skills() -> None:
 
 
 def test_bench_tick_prints_json_lines() -> None:
-    result = botstage("bench", "tick", "--quick")
+    result = bench("tick", "--quick")
     assert result.returncode == 0, result.stderr
     rows = [json.loads(line) for line in result.stdout.splitlines() if line.startswith("{")]
     assert [r["bench"] for r in rows][:4] == ["tree_instant", "tree_running", "machine", "simclock_timeouts"]
@@ -89,14 +96,14 @@ def test_bench_tick_prints_json_lines() -> None:
 
 
 def test_bench_sim_prints_json() -> None:
-    result = botstage("bench", "sim", "--quick")
+    result = bench("sim", "--quick")
     assert result.returncode == 0, result.stderr
     row = json.loads(result.stdout.splitlines()[0])
     assert row["bench"] == "sim_museum" and row["people"] == 20 and row["speedup_vs_realtime"] > 0
 
 
 def test_bench_nav_prints_json() -> None:
-    result = botstage("bench", "nav", "--quick")
+    result = bench("nav", "--quick")
     assert result.returncode == 0, result.stderr
     row = json.loads(result.stdout.splitlines()[0])
     assert row["bench"] == "plan_1000x1000" and row["plans"] == 10 and row["median_ms"] > 0

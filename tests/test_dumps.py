@@ -197,7 +197,7 @@ def test_without_graphviz_one_line_and_a_suggestion(tmp_path: Path) -> None:
 
     env = {**os.environ, "PATH": str(empty)}
     exe = shutil.which("botstage")
-    command = [exe] if exe else [sys.executable, "-c", "from missions.cli import app; app()"]
+    command = [exe] if exe else [sys.executable, "-c", "from botstage.missions.cli import app; app()"]
     result = subprocess.run(
         [*command, "tree", "--format", "svg", "-o", str(tmp_path / "x.svg")],
         capture_output=True,

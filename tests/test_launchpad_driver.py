@@ -334,7 +334,7 @@ def test_bench_serial_prints_json_lines() -> None:
 
     root = Path(__file__).resolve().parent.parent
     result = subprocess.run(
-        [sys.executable, "-m", "botstage.missions.cli", "bench", "serial", "--quick"],
+        [sys.executable, "-m", "tests.bench", "serial", "--quick"],
         cwd=root,
         capture_output=True,
         text=True,

@@ -1,6 +1,6 @@
 """Localisation: the pose EKF, scan matching against the map, and the Localizer on the simulator.
 
-The drives use ``missions/bench/bench_localization.py``'s harness: the robot is steered with its
+The drives use ``tests/bench/bench_localization.py``'s harness: the robot is steered with its
 true pose and its encoders count the wheels' turning, so odometry drifts as on a real floor.
 Bounds were measured (see the benchmark) and are asserted with margin; every run is seeded.
 """
@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 import pytest
-from botstage.missions.bench.bench_localization import drive_loop, robot_profile
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import FREE, OCCUPIED, GridMap, load
 from botstage.robots.interfaces import LaserScan, Pose2D
@@ -21,6 +20,8 @@ from botstage.robots.sim.world import World
 from botstage.skills.nav.ekf import PoseEKF, wrap
 from botstage.skills.nav.localization import Localizer, LocalizerParams, PoseEstimate, increment
 from botstage.skills.nav.scan_match import MatchResult, ScanMatcher
+
+from tests.bench.bench_localization import drive_loop, robot_profile
 
 MUSEUM = load("robots/maps/museum.yaml")
 PEOPLEBOT = robot_profile("peoplebot")

@@ -329,7 +329,7 @@ def test_path_expiring_timer_starts_over_with_a_new_path(engine: Any) -> None:
 
 @pytest.fixture(scope="module")
 def sim() -> Any:
-    from botstage.missions.bench.navsim import NavSim
+    from tests.bench.navsim import NavSim
 
     return NavSim("museum", "peoplebot", "hall_centre")
 

@@ -20,11 +20,12 @@ from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
 from botstage.behaviors.nav2.models import check_models
 from botstage.behaviors.nav2.navigator import Navigator
-from botstage.missions.bench.bench_tick import NAV2_YAML
-from botstage.missions.bench.navsim import NavSim
 from botstage.missions.cli import app
 from botstage.skills.registry import Registry
 from typer.testing import CliRunner
+
+from tests.bench.bench_tick import NAV2_YAML
+from tests.bench.navsim import NavSim
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "nav2"
 TO_POSE = "navigate_to_pose_w_replanning_and_recovery.xml"

@@ -1,4 +1,4 @@
-"""`botstage speech recognize` and `botstage bench speech`, as a user runs them."""
+"""`botstage speech recognize` and `python -m tests.bench speech`, as a user and a developer run them."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ CHECKOUT = Path(__file__).resolve().parent.parent
 
 def botstage(*args: str) -> subprocess.CompletedProcess[str]:
     """This checkout's command line (an installed `botstage` may belong to another checkout)."""
-    command = [sys.executable, "-c", "from missions.cli import app; app()", *args]
+    command = [sys.executable, "-c", "from botstage.missions.cli import app; app()", *args]
     return subprocess.run(command, capture_output=True, text=True, cwd=CHECKOUT, timeout=600)
 
 
@@ -89,7 +89,13 @@ def test_bench_speech_quick_prints_its_figures() -> None:
         if os.environ.get("CI") == "true":
             pytest.fail("espeak-ng is missing: .ci/run installs it (SYSTEM_PACKAGES)")
         pytest.skip("espeak-ng is not installed (apt-get install espeak-ng)")
-    result = botstage("bench", "speech", "--quick")
+    result = subprocess.run(
+        [sys.executable, "-m", "tests.bench", "speech", "--quick"],
+        capture_output=True,
+        text=True,
+        cwd=CHECKOUT,
+        timeout=600,
+    )
     assert result.returncode == 0, result.stderr
     row = json.loads(result.stdout.splitlines()[0])
     assert row["bench"] == "speech_commands" and row["voices"] == 3 and row["default"] == "embedding"

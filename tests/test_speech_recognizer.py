@@ -2,7 +2,7 @@
 
 tests/data/speech/ holds espeak-ng's en-us voice at 160 words a minute, resampled to 16 kHz
 and trimmed: the five commands, a phrase that is none ("good morning") and a sentence for
-free mode. They were made with missions/bench/bench_speech.py's ``synthesise``, so these tests
+free mode. They were made with tests/bench/bench_speech.py's ``synthesise``, so these tests
 need no espeak-ng.
 """
 

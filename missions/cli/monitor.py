@@ -1,41 +1,12 @@
-"""The live monitor on the command line: `botstage run … --monitor` and `botstage monitor RUN_FOLDER`."""
+"""`botstage monitor SOURCE...`: finished runs and other processes' live monitors in one page (the web set)."""
 
 from __future__ import annotations
 
-import contextlib
-import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import typer
 from botstage.missions.cli.common import _fail, console
-
-HOST_HELP = "address to listen on (default 127.0.0.1; any other needs BOTSTAGE_MONITOR_TOKEN)"
-
-
-@contextlib.contextmanager
-def live_monitor(host: str, port: int, paused: bool) -> Iterator[object]:
-    """A monitor serving a run while it runs (yields its observer); stopped when the run is done."""
-    from botstage.missions.monitor.control import Control
-    from botstage.missions.monitor.hub import Hub
-    from botstage.missions.monitor.observer import MonitorObserver
-    from botstage.missions.monitor.server import PUSH_S, MonitorError, start_monitor
-
-    hub = Hub()
-    control = Control(hub, simulated=True)
-    if paused:
-        control.request({"action": "pause"})
-    try:
-        running = start_monitor(hub, control, host=host, port=port)
-    except MonitorError as exc:
-        raise _fail(f"error: {exc}", 2) from None
-    console.print(f"monitor: {running.url}/  (the tablet: {running.url}/display)", highlight=False, soft_wrap=True)
-    try:
-        yield MonitorObserver(hub, control)
-    finally:
-        control.close()
-        time.sleep(3 * PUSH_S)  # the pages hear that the run ended before the server goes
-        running.stop()
+from botstage.missions.cli.live import HOST_HELP
 
 
 def monitor(

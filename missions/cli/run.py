@@ -1,29 +1,24 @@
-"""Verbs on missions and their scenarios: check, print the schema, run, test, make a scenario."""
+"""`botstage run`: a mission run to its run folder, watched live, by the monitor or by Groot2 on request."""
 
 from __future__ import annotations
 
 import contextlib
-import json
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
 from botstage.missions import DEFAULT_MISSION
-from botstage.missions.cli.backends import backend_help, backend_options, observer_help, observers
 from botstage.missions.cli.common import (
     NON_NEGATIVE,
     _fail,
     _stderr,
     console,
-    input_file,
-    input_paths,
     number,
     os_problem,
     output_dir,
-    output_file,
 )
-from botstage.missions.cli.monitor import HOST_HELP, live_monitor
+from botstage.missions.cli.live import HOST_HELP, live_monitor
+from botstage.missions.cli.opening import backend_help, backend_options, observer_help, observers
 from botstage.robots.backend_registry import DEFAULT
 from botstage.robots.limits import MAX_SECONDS
 from rich.live import Live
@@ -33,42 +28,6 @@ if TYPE_CHECKING:
     from botstage.missions.groot2.publisher import Groot2Publisher
 
 UNTIL = number(gt=0, le=MAX_SECONDS)  # as `until:` in a mission file
-
-scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")
-
-
-def validate(missions: list[Path] = typer.Argument(..., help="mission or deployment files to check")) -> None:
-    """Check missions (or deployments, with their mission) without running them; errors as
-    file:line:col, exit status 1 if any."""
-    from botstage.missions.check import check
-    from botstage.missions.deployment import check_deployment, is_deployment
-
-    failed = False
-    for path in missions:
-        checked = check_deployment(path) if is_deployment(path) else check(path)
-        _stderr([str(problem) for problem in checked.problems])
-        failed |= not checked.ok
-        if checked.ok:
-            console.print(f"{path}: ok")
-    if failed:
-        raise typer.Exit(1)
-
-
-def schema(
-    builtin: bool = typer.Option(
-        False, help="only the built-in skills and node kinds (as missions/mission.schema.json has)"
-    ),
-) -> None:
-    """Print the JSON Schema of mission files (for editor completion)."""
-    from botstage.behaviors.kinds import NodeKinds
-    from botstage.missions.schema import json_schema
-    from botstage.skills.registry import Registry
-
-    if builtin:
-        schema = json_schema(Registry.builtin(), NodeKinds.builtin())
-    else:
-        schema = json_schema(Registry.default(), NodeKinds.default())
-    sys.stdout.write(json.dumps(schema, indent=2) + "\n")
 
 
 def _live_progress(live: Live):
@@ -213,89 +172,3 @@ def run(
         _stderr([f"warning: observer {error}"])
     if result.exit_status:
         raise typer.Exit(result.exit_status)
-
-
-def test_scenarios(
-    paths: list[Path] = typer.Argument(
-        None, help="scenario files or folders (default: missions/scenarios)", callback=input_paths
-    ),
-    coverage: bool = typer.Option(False, "--coverage", help="print coverage per mission and write it"),
-    coverage_file: Path = typer.Option(Path("coverage.json"), help="where --coverage writes its figures"),
-) -> None:
-    """Run scenario tests without pytest; a failure prints its readable report and keeps its run
-    folder (the report names it). Exit 1 if any fails."""
-    from botstage.missions.coverage import Session, write
-    from botstage.missions.scenario_suite import SuiteError, run_suite, scenario_files
-
-    if coverage:  # checked before the suite runs, not after
-        try:
-            output_file(coverage_file)
-        except typer.BadParameter as exc:
-            raise _fail(f"error: --coverage-file: {exc.message}", 2) from None
-    roots = paths or [Path("missions/scenarios")]
-    try:
-        files = scenario_files(roots)
-    except SuiteError as exc:
-        raise _fail(f"error: {exc}", 2) from None
-    failed = 0
-    session = Session()
-    for path, result in run_suite(files):
-        session.add(result)
-        if result.passed:
-            console.print(f"[green]PASS[/] {path}", highlight=False, soft_wrap=True)
-        else:
-            failed += 1
-            console.print(f"[red]FAIL[/] {path}", highlight=False, soft_wrap=True)
-            _stderr([result.report(), ""])
-    if coverage:
-        reports = session.reports()
-        table = Table("mission", "runs", "nodes", "states", "transitions")
-        for report in reports:
-            f = report.figures()
-            table.add_row(
-                report.mission,
-                str(f["runs"]),
-                *(
-                    f"{f[k]['percent']:g}% ({f[k]['covered']}/{f[k]['total']})"
-                    for k in ("nodes", "states", "transitions")
-                ),
-            )
-        console.print(table)
-        for report in reports:
-            for kind, items in zip(("node", "state", "transition"), report.untested(), strict=True):
-                for name in items:
-                    console.print(f"  untested {kind}: {name}", highlight=False, soft_wrap=True)
-        try:
-            write(reports, coverage_file)
-        except OSError as exc:
-            raise _fail(f"error: cannot write coverage: {os_problem(exc)}") from None
-        console.print(f"coverage written to {coverage_file}", highlight=False, soft_wrap=True)
-    console.print(f"{len(files) - failed} passed, {failed} failed", highlight=False)
-    if failed:
-        raise typer.Exit(1)
-
-
-@scenario_app.command("from-trace")
-def scenario_from_trace(
-    trace: Path = typer.Argument(
-        ..., help="a recorded run's trace.jsonl (its summary.json beside it)", callback=input_file
-    ),
-    output: Path = typer.Option(..., "-o", "--output", help="the scenario file to write", callback=output_file),
-    mission: Path | None = typer.Option(
-        None, help="the mission (default: the one summary.json names)", callback=input_file
-    ),
-) -> None:
-    """Turn a recorded run into a regression scenario that replays its skill outcomes."""
-    from botstage.missions.scenario import from_trace
-
-    try:
-        spec = from_trace(trace, output, mission)
-    except (OSError, ValueError, KeyError) as exc:
-        raise _fail(f"error: {exc}", 2) from None
-    calls = sum(c.get("times", 1) for v in spec["mocks"].values() for c in v)
-    console.print(
-        f"wrote {output}: {calls} recorded calls of {len(spec['mocks'])} skills, "
-        f"{len(spec['expect']['states'])} states expected",
-        highlight=False,
-        soft_wrap=True,
-    )

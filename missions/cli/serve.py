@@ -2,20 +2,25 @@
 
 ``serve robot PROFILE`` runs a robot's devices on a backend and serves each interface as ROS 2
 topics (robots/ros2/robot_server.py), until Ctrl-C or SIGTERM: then the drive gets zero velocity,
-the node leaves the graph and the process exits 0.
+the node leaves the graph and the process exits 0. ``serve process DEPLOYMENT NAME`` runs one
+process of a deployment by its role (missions/distributed/process.py). Both are the ros2 set's.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import signal
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import typer
-from botstage.missions.cli.backends import backend_help
 from botstage.missions.cli.common import NON_NEGATIVE, _fail, number
+from botstage.missions.cli.distributed import CONNECT_HELP, check
+from botstage.missions.cli.live import HOST_HELP, live_monitor
+from botstage.missions.cli.opening import backend_help, backend_options, open_backend, robot_place
 
 serve_app = typer.Typer(
     no_args_is_help=True,
@@ -77,8 +82,6 @@ def robot(
     watchdog time (0.5 s), the drive stops.
     """
     import zenoh
-    from botstage.missions.cli.backends import open_backend
-    from botstage.missions.cli.robots import _robot_place
     from botstage.robots.backend import OpenRequest
     from botstage.robots.backend_registry import BackendRegistry
     from botstage.robots.ros2.endpoints import ROUTER_LISTEN
@@ -98,7 +101,7 @@ def robot(
     if backend == "ros2":
         raise _fail("error: --backend ros2 drives a robot already on the graph: there is nothing to serve", 2)
     simulated = backend in registry and registry.get(backend).simulated
-    robot_profile, grid, pose = _robot_place(profile, world, start)
+    robot_profile, grid, pose = robot_place(profile, world, start)
     clock, waiter = realtime_clock(rate_hz)
     request = OpenRequest(robot_profile, pose, clock, seed=seed, grid=grid, people=people)
     opened = open_backend(backend, request, backend_opt, port, profile)
@@ -128,6 +131,61 @@ def robot(
         server.close()
     trips = server.watchdog.trips
     print(f"stopped ({len(trips)} watchdog stop{'s' if len(trips) != 1 else ''})", flush=True)
+
+
+@serve_app.command("process")
+def process(
+    deployment: Path = typer.Argument(..., help="the deployment file (missions/deployments/*.yaml)"),
+    name: str = typer.Argument(..., help="the process of the deployment to run here"),
+    out: Path = typer.Option(Path("runs/deployment"), help="the run folder (shared by the processes of one run)"),
+    seed: int | None = typer.Option(None, help="the mission's seed (default: the mission's)", callback=NON_NEGATIVE),
+    until: float | None = typer.Option(None, help="stop the mission after this many seconds of mission time"),
+    connect: list[str] = typer.Option([], "--connect", metavar="ENDPOINT", help=CONNECT_HELP),
+    listen: list[str] = typer.Option([], "--listen", metavar="ENDPOINT", help="where this process listens"),
+    certs: Path | None = typer.Option(
+        None,
+        metavar="DIR",
+        help="speak only mutual TLS with this process's certificate (its folder, or the one `botstage certs` "
+        "wrote) under the deployment's access policy; then it may listen beyond loopback (--listen tls/0.0.0.0:7447)",
+    ),
+    backend: str | None = typer.Option(
+        None,
+        help="the robot process's backend on this machine instead of the file's, e.g. hardware on the robot's "
+        "own computer (the mission follows its clock: lockstep when simulated, real time otherwise)",
+    ),
+    port: str | None = typer.Option(None, help="the robot's serial port (hardware), e.g. /dev/serial0"),
+    backend_opt: list[str] = typer.Option(
+        [], "--backend-opt", metavar="KEY=VALUE", help="a backend option (repeatable); see `botstage backends`"
+    ),
+    monitor_port: int | None = typer.Option(
+        None, help="the mission's process: serve the live monitor on this port (0: a free one)", min=0, max=65535
+    ),
+    monitor_host: str = typer.Option("127.0.0.1", help=HOST_HELP),
+) -> None:
+    """Run one process of a deployment (its robot, skills or mission) and serve it until Ctrl-C."""
+    from botstage.missions.distributed.process import BackendGiven, DeploymentError, serve_process
+
+    check(deployment)
+    given = BackendGiven(backend, backend_options(backend_opt), port)
+    watching = live_monitor(monitor_host, monitor_port, False) if monitor_port is not None else contextlib.nullcontext()
+    try:
+        with watching as observer:
+            code = serve_process(
+                deployment,
+                name,
+                out=out,
+                seed=seed,
+                until=until,
+                connect=connect,
+                listen=listen or None,
+                ready=lambda line: print(line, flush=True),
+                certs=certs,
+                backend=given,
+                observers=[observer] if observer is not None else [],
+            )
+    except DeploymentError as error:
+        raise _fail(str(error), 2) from None
+    raise typer.Exit(code)
 
 
 def profile_name(profile: str) -> str:

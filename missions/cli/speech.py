@@ -1,4 +1,4 @@
-"""Speech verbs: the listen skill's recogniser on WAV files."""
+"""`botstage speech recognize`: the listen skill's recogniser on WAV files (the speech set)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import _fail, _stderr
 
 speech_app = typer.Typer(no_args_is_help=True, help="Speech: the listen skill's recogniser on WAV files.")
@@ -18,7 +19,8 @@ def speech_recognize(
     recognizer: str = typer.Option("embedding", help="for commands: embedding (the default) or pocketsphinx"),
 ) -> None:
     """Print FILE<TAB>COMMAND per file (`-` when nothing was recognised); in free mode FILE<TAB>TEXT."""
-    from botstage.skills.speech.recognizer import MODES, RECOGNIZERS, recognizer_named
+    from botstage.skills.speech.recognizer import MODES, RECOGNIZERS
+    from botstage.skills.speech.recognizers import recognizer_named
     from botstage.skills.speech.recording import recognize_recording
     from botstage.skills.speech.wav import WavFormatError, read_wav
 
@@ -46,35 +48,3 @@ def speech_recognize(
         sys.stdout.flush()
     if failed:
         raise typer.Exit(1)
-
-
-@speech_app.command("train")
-def speech_train(
-    out: Path = typer.Option(
-        None, help="where to write the weights (default: the shipped skills/speech/models/commands.npz)"
-    ),
-    quick: bool = typer.Option(
-        False, help="8 training voices: a smoke run, not weights to ship (written to ./commands-quick.npz unless --out)"
-    ),
-    cache: Path = typer.Option(None, help="a folder to keep the training features in between runs"),
-    workers: int = typer.Option(2, min=1, help="processes synthesising and embedding"),
-    thresholds_only: bool = typer.Option(
-        False,
-        "--thresholds-only",
-        help="keep the network of the weights at --out (default: the shipped ones) and choose its thresholds "
-        "again on the tuning set",
-    ),
-) -> None:
-    """Train the command classifier on espeak-ng speech (needs espeak-ng); see missions/bench/train_speech.py."""
-    import shutil
-
-    from botstage.missions.bench import train_speech
-
-    if shutil.which("espeak-ng") is None:
-        raise _fail("error: espeak-ng is missing: training makes its audio with it (apt-get install espeak-ng)", 1)
-    if thresholds_only:
-        if out is not None and not out.exists():
-            raise _fail(f"error: --thresholds-only: no weights at {out}", 2)
-        train_speech.rethreshold(out, cache, workers)
-        return
-    train_speech.main(out, quick, cache, workers)

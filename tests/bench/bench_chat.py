@@ -1,4 +1,4 @@
-"""Chat benchmarks. Run with `botstage bench chat`.
+"""Chat benchmarks. Run with `python -m tests.bench chat`.
 
 - **brain**: learning Maya's AIML (the A.L.I.C.E. set python-aiml ships plus her own: parse,
   python-aiml's PatternMgr, flatten, write the cache file) against loading the cached brain

@@ -1,5 +1,5 @@
 """The face tracker (the book's chapter 2) on the simulated head, each figure beside a baseline
-measured in the same run. Run with `botstage bench facetracker`.
+measured in the same run. Run with `python -m tests.bench facetracker`.
 
 The head is ``robots/profiles/face_tracker.yaml`` in the simulator: the webcam (640x480, 0.87 rad
 across, 30 fps) rides on the AX-12A pan joint (1.17 rad/s) at the museum hall's centre, and a
@@ -40,11 +40,10 @@ from typing import Any
 
 import cv2
 import numpy as np
-from botstage.missions.bench.bench_serial import percentile
-from botstage.missions.places import robot_place
 from botstage.robots.backend import ScriptedWalk
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import CameraInfo
+from botstage.robots.places import robot_place
 from botstage.robots.sim.backend import SimBackend
 from botstage.skills.base import SkillContext, SkillLogger
 from botstage.skills.execution import SkillExecution
@@ -52,6 +51,8 @@ from botstage.skills.perception.face_tracking import FaceDetector
 from botstage.skills.testing import DictBoard
 from botstage.skills.track_face import TrackFace
 from botstage.skills.workers import Workers
+
+from tests.bench.bench_serial import percentile
 
 RATE_HZ = 30.0  # the webcam's frame rate: a frame a tick
 SEED = 1

@@ -1,4 +1,4 @@
-"""Serial benchmarks for the Chefbot's Launchpad link. Run with `botstage bench serial`.
+"""Serial benchmarks for the Chefbot's Launchpad link. Run with `python -m tests.bench serial`.
 
 At 115200 baud 8N1 a serial line carries at most 11,520 bytes/s; the board's lines average
 about 19 bytes, so at most ~600 lines/s. Targets: the driver parses at least 100x that rate,

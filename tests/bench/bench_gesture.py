@@ -1,5 +1,5 @@
 """The gesture controller of the book's chapter 5 (the hand's IMU over rosserial, the converter),
-each figure beside a baseline measured in the same run. Run with `botstage bench gesture`.
+each figure beside a baseline measured in the same run. Run with `python -m tests.bench gesture`.
 
 - **parser**: what the gesture sketch sends (the time request and the TopicInfo of ``/tf`` and
   ``imu_data`` after the host's topic request, then per loop an ``imu_data`` Vector3 and a
@@ -43,11 +43,12 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from botstage.missions.bench.bench_serial import TARGET_P99_MS, Pty, bench_pty_floor, percentile
 from botstage.robots.drivers import rosserial_protocol as rp
 from botstage.robots.drivers.rosserial import BAUD, RosserialDriver
 from botstage.robots.emulators.imu_arduino import BUFFER_SIZE, IMU_TOPIC, TF_TOPIC, VECTOR3, HandScript, as_published
 from botstage.skills.gesture import GestureConfig, GestureConverter
+
+from tests.bench.bench_serial import TARGET_P99_MS, Pty, bench_pty_floor, percentile
 
 LINE_RATE_BYTES = BAUD / 10  # 8N1: ten bits a byte
 TARGET_PARSER_RATIO = 100.0

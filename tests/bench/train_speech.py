@@ -1,7 +1,7 @@
-"""Train the command classifier on the speech embedding: `botstage speech train`.
+"""Train the command classifier on the speech embedding: `python -m tests.bench train-speech`.
 
 Everything it hears is made here with espeak-ng, and none of it is the benchmark's
-(missions/bench/bench_speech.py) or the tuning set's:
+(tests/bench/bench_speech.py) or the tuning set's:
 
 - **voices**: espeak-ng's English voices (``BASES``) with its variants (``VARIANTS``), every pair
   except the benchmark's ``VOICES`` and the tuning ``TUNE_VOICES`` (``en`` is ``en-gb``, so
@@ -83,7 +83,7 @@ Third session (the benchmark had been run once more, on step 9's weights: 96.7 /
     training nor the benchmark uses), 80 commands a command and condition. There step 9's
     network finds 465 (summed over the conditions), step 10's 452 and 443: near misses dropped.
     Step 9's thresholds break the rule there (4.5 % and 4.3 % at 10 dB); chosen again on the 40
-    voices (``botstage speech train --thresholds-only``): PHOTO 0.93, YES 0.97, WHATSUP 0.95,
+    voices (``python -m tests.bench train-speech --thresholds-only``): PHOTO 0.93, YES 0.97, WHATSUP 0.95,
     CANCEL 0.96, CIAO 0.92, finding 95.8 / 95.0 / 89.5 / 95.2 / 89.5 at 1.2-4.0 %, which is also
     close to what the benchmark had measured on step 9: the larger set predicts it. The
     benchmark, run once on these: 98.7 / 98.0 / 95.3 / 96.3 / 95.0 at 0.0-0.1 %.
@@ -102,7 +102,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from botstage.missions.bench.bench_speech import (
+from botstage.skills.speech.embedding import CLASSES, Classifier, SpeechEmbedding, pooled, weights_path
+from botstage.skills.speech.recognizer import COMMANDS
+from botstage.skills.speech.vad import find_utterances
+from scipy.optimize import minimize
+from scipy.signal import fftconvolve, resample_poly
+
+from tests.bench.bench_speech import (
     PAD,
     PHRASES,
     SAY,
@@ -116,11 +122,6 @@ from botstage.missions.bench.bench_speech import (
     speech_power,
     synthesise,
 )
-from botstage.skills.speech.embedding import CLASSES, Classifier, SpeechEmbedding, pooled, weights_path
-from botstage.skills.speech.recognizer import COMMANDS
-from botstage.skills.speech.vad import find_utterances
-from scipy.optimize import minimize
-from scipy.signal import fftconvolve, resample_poly
 
 BASES = ("en-us", "en-gb", "en-gb-scotland", "en-gb-x-gbclan", "en-gb-x-rp", "en-gb-x-gbcwmd", "en-029", "en-us-nyc")
 VARIANTS = (
@@ -549,7 +550,7 @@ def main(out: Path | None = None, quick: bool = False, cache: Path | None = None
     thresholds, measured = tuned_thresholds(classifier, workers, cache)
     named = dict(zip(COMMANDS, thresholds, strict=True))
     meta = {
-        "trained_by": "botstage speech train (missions/bench/train_speech.py)" + (" --quick" if quick else ""),
+        "trained_by": "python -m tests.bench train-speech" + (" --quick" if quick else ""),
         "voices": voices,
         "speeds": list(TRAIN_SPEEDS),
         "pitches": list(TRAIN_PITCHES),

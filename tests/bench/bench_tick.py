@@ -10,7 +10,7 @@ Prints one JSON object per line:
 - ``machine``: per-trigger cost of a 3-level hierarchical machine whose states run trivial
   skills through the engine, against the same HierarchicalMachine driven with raw triggers.
 
-Run with ``botstage bench tick``. Timings take the best of several repeats to shed noise.
+Run with ``python -m tests.bench tick``. Timings take the best of several repeats to shed noise.
 """
 
 from __future__ import annotations
@@ -266,11 +266,14 @@ NAV2_YAML = Path(__file__).with_name("nav2_navigate_to_pose.yaml")
 def _nav2_drive(trees: dict[str, Any], root: str, ticks: int) -> float:
     """Seconds per engine tick (the world's step not counted) of ``ticks`` ticks of the PeopleBot
     driving from the museum's entrance to exhibit_a under the tree: planning at 1 Hz, following."""
+    from botstage.behaviors.kinds import NodeKinds
     from botstage.behaviors.nav2.navigator import ERROR_CODE_PREFIXES
-    from botstage.missions.bench.navsim import NavSim
+
+    from tests.bench.navsim import NavSim
 
     sim = NavSim("museum", "peoplebot", "entrance", seed=3)
-    engine = Engine(clock=sim.clock, interfaces={**sim.sim.devices, **sim.services.interfaces})
+    kinds = NodeKinds.default("btcpp")  # Nav2's nodes are in BT.CPP's scope
+    engine = Engine(clock=sim.clock, interfaces={**sim.sim.devices, **sim.services.interfaces}, kinds=kinds)
     engine.set_root(engine.builder(trees=trees).named_tree(root))
     engine.blackboard.update({"goal": "exhibit_a", **{f"{p}_error_code": 0 for p in ERROR_CODE_PREFIXES}})
     spent = 0.0
@@ -285,8 +288,9 @@ def _nav2_drive(trees: dict[str, Any], root: str, ticks: int) -> float:
 
 def bench_nav2(ticks: int, repeats: int) -> dict[str, Any]:
     """Nav2's NavigateToPose tree as Nav2 ships it (BT.CPP XML, imported) against the same tree
-    written in botstage's YAML (missions/bench/nav2_navigate_to_pose.yaml), µs per tick on a robot."""
-    from botstage.behaviors.btcpp.to_spec import load_xml
+    written in botstage's YAML (tests/bench/nav2_navigate_to_pose.yaml), µs per tick on a robot."""
+    from botstage.behaviors.btcpp.xml_format import load_xml
+    from botstage.behaviors.kinds import NodeKinds
 
     row: dict[str, Any] = {"bench": "nav2_navigate_to_pose", "ticks_per_repeat": ticks, "repeats": repeats}
     if not NAV2_XML.exists():
@@ -295,7 +299,8 @@ def bench_nav2(ticks: int, repeats: int) -> dict[str, Any]:
     if loaded.data is None:
         return {**row, "skipped": "; ".join(str(p) for p in loaded.problems)}
     native = yaml.safe_load(NAV2_YAML.read_text(encoding="utf-8"))
-    nodes = sum(1 for _ in Engine().builder(trees=native["trees"]).named_tree(native["root"]).iterate())
+    built = Engine(kinds=NodeKinds.default("btcpp")).builder(trees=native["trees"]).named_tree(native["root"])
+    nodes = sum(1 for _ in built.iterate())
     xml_s, yaml_s = _best_pair(
         lambda: _nav2_drive(loaded.data["trees"], loaded.data["root"], ticks),
         lambda: _nav2_drive(native["trees"], native["root"], ticks),

@@ -1,4 +1,4 @@
-"""Verbs on robots themselves: their skills, a board emulated for a driver, driving by keyboard."""
+"""`botstage teleop`: drive a robot by keyboard or the gesture glove, opened here or served elsewhere."""
 
 from __future__ import annotations
 
@@ -7,117 +7,11 @@ from pathlib import Path
 from typing import Any
 
 import typer
-from botstage.missions.cli.backends import backend_help
-from botstage.missions.cli.common import NON_NEGATIVE, POSITIVE, _fail, _stderr, console, number
+from botstage.missions.cli.common import NON_NEGATIVE, POSITIVE, _fail, console, number
+from botstage.missions.cli.opening import backend_help, open_backend, robot_place
 from botstage.robots.backend_registry import DEFAULT
-from rich.table import Table
 
 RATE = number(gt=0, le=1000)
-
-
-def skills() -> None:
-    """List the skills the registry finds (built-in and plugins) with their contracts."""
-    from botstage.skills.registry import Registry
-
-    registry = Registry.default()
-    table = Table("skill", "inputs", "outputs", "outcomes", "from")
-    for name in registry:
-        info = registry.get(name).describe()
-        table.add_row(
-            name,
-            ", ".join(info["inputs"]) or "-",
-            ", ".join(info["outputs"]) or "-",
-            ", ".join(info["outcomes"]),
-            registry.origin(name),
-        )
-    console.print(table)
-    _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in registry.problems])
-
-
-def nodes() -> None:
-    """List the node kinds trees can use (built-in and plugins): what each takes and where it comes from."""
-    from botstage.behaviors.kinds import NodeKinds
-
-    kinds = NodeKinds.default()
-    table = Table("kind", "written", "options", "description", "from")
-    for name in kinds:
-        kind = kinds.get(name)
-        table.add_row(
-            name,
-            kind.written(),
-            ", ".join(sorted(kind.option_names() - {"child"})) or "-",
-            kind.description,
-            kinds.origin(name),
-        )
-    console.print(table)
-    _stderr([f"plugin {problem.entry_point}: {problem.reason}" for problem in kinds.problems])
-
-
-def _robot_place(profile_name: str, world: str, start: str):
-    """A shipped or given profile, a map, and a start (a place of the map or "x,y,theta")."""
-    from botstage.missions.places import PlaceError, robot_place
-
-    try:
-        return robot_place(profile_name, world, start)
-    except PlaceError as exc:
-        raise _fail(exc.lines, 2) from None
-
-
-def emulate(
-    board: str = typer.Argument(..., help="the board to emulate: launchpad (Chefbot's Tiva C), nyboard (Bittle's)"),
-    world: str = typer.Option("restaurant", help="the map the simulated robot drives on"),
-    start: str = typer.Option("dock", help="a place of the map, or x,y,theta"),
-    seed: int = typer.Option(0, help="the simulated world's seed", callback=NON_NEGATIVE),
-    counter_start: int = typer.Option(
-        0,
-        help="the encoders' first count, a 32-bit signed value (near 2147483647 to test wrap-around)",
-        callback=number(ge=-(2**31), le=2**31 - 1),
-    ),
-) -> None:
-    """Play a robot's board on a pseudo-terminal, driving the simulated robot; until Ctrl-C.
-
-    Connect a driver (or `miniterm.py`) to the path it prints. Faults, typed on standard input:
-    `garbage N`, `drop N`, `stall left|right|none`, `unplug SECONDS`, `reset`, `status`.
-    """
-    import threading
-
-    robots = {"launchpad": "chefbot", "nyboard": "bittle"}
-    if board not in robots:
-        raise _fail(f"error: unknown board {board!r}; boards: {', '.join(robots)}", 2)
-    from botstage.missions.fault_console import FAULTS, apply_fault
-    from botstage.robots.emulators.launchpad import LaunchpadEmulator
-    from botstage.robots.emulators.nyboard import NyBoardEmulator
-    from botstage.robots.emulators.pty_board import PtyBoard
-    from botstage.robots.sim.world import World
-
-    profile, grid, pose = _robot_place(robots[board], world, start)
-    body = World(grid, profile, pose, seed)
-    if board == "launchpad":
-        emulator: PtyBoard = LaunchpadEmulator(body, counter_start=counter_start).start()
-    elif counter_start:
-        raise _fail("error: --counter-start is the Launchpad's encoders' first count; the NyBoard has none", 2)
-    else:
-        emulator = NyBoardEmulator(body).start()
-    name = {"launchpad": "Launchpad", "nyboard": "NyBoard (OpenCat 2)"}[board]
-    console.print(f"{name} emulator: connect to {emulator.path} (now {emulator.pty_path}), 115200 8N1", highlight=False)
-    console.print(f"Ctrl-C stops; faults: {FAULTS}")
-    stop = threading.Event()
-
-    def faults() -> None:
-        for line in sys.stdin:
-            reply = apply_fault(emulator, line)  # never raises: a bad line gets a reply, the console goes on
-            if reply is not None:
-                console.print(reply, highlight=False, markup=False)
-        stop.wait()  # end of input: keep running until Ctrl-C
-
-    try:  # the console starts inside: once it answers, Ctrl-C ends the run cleanly
-        threading.Thread(target=faults, daemon=True).start()
-        while not stop.wait(0.5):
-            pass
-    except KeyboardInterrupt:
-        pass
-    finally:
-        emulator.close()
 
 
 def _gesture_teleop(
@@ -132,9 +26,9 @@ def _gesture_teleop(
     """Drive ``backend``'s robot from the gesture IMU (its emulator unless ``imu_port``) until ``until`` or Ctrl-C."""
     import contextlib
 
-    from botstage.missions.teleop import drive_loop
     from botstage.robots.drivers.rosserial import RosserialDriver
     from botstage.robots.emulators.imu_arduino import ImuArduino
+    from botstage.robots.teleop import drive_loop
     from botstage.skills.gesture import GestureCommands, load_config
 
     try:
@@ -166,7 +60,7 @@ def _open_served(
     profile: Any, pose: Any, clock: Any, connect: list[str], domain_id: int, namespace: str, certs: Path | None
 ) -> Any:
     """The served robot, or exit with the reason (a bad endpoint, namespace or certificate: 2; nobody answering: 1)."""
-    from botstage.missions.teleop import open_served
+    from botstage.robots.ros2.teleop import open_served
     from pydantic import ValidationError
 
     security = None
@@ -239,10 +133,9 @@ def teleop(
     """Drive a robot with the keyboard, as the book's keyboard teleop: w/x a/d (or arrows), s stops, q quits;
     or with the book's gesture controller (--input gesture): tilt forward to speed up, turn the hand to turn.
     The robot is opened here (--backend), or served by another process (--connect)."""
-    from botstage.missions.cli.backends import open_backend
-    from botstage.missions.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
     from botstage.robots.backend import OpenRequest
     from botstage.robots.clock import WallClock
+    from botstage.robots.teleop import HELP, StreamKeys, Teleop, TerminalKeys, run_teleop
 
     if input_ not in ("keys", "gesture"):
         raise typer.BadParameter(f"{input_!r}: keys or gesture", param_hint="'--input'")
@@ -254,7 +147,7 @@ def teleop(
             "--backend-opt open one here: give one or the other",
             2,
         )
-    profile, grid, pose = _robot_place(robot, world, start)
+    profile, grid, pose = robot_place(robot, world, start)
     clock = WallClock(rate_hz)
     if connect:
         robot_backend = _open_served(profile, pose, clock, connect, domain_id, namespace, certs)

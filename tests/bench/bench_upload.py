@@ -1,4 +1,4 @@
-"""Upload benchmarks. Run with `botstage bench upload`.
+"""Upload benchmarks. Run with `python -m tests.bench upload`.
 
 Photos go to the gallery (`botstage gallery`, in a process of its own on 127.0.0.1, as on a
 robot's upload computer) two ways, in the same run, against the same server:
@@ -45,7 +45,7 @@ from botstage.skills.outbox.store import UPLOADED
 TARGET_RATIO = 0.8
 PAPER_BYTES = 3_260_000  # the paper's 3.26 MB photo
 PAPER_SECONDS = 15.856  # modified RestFB, Table V
-SOURCE = Path(__file__).resolve().parents[2]  # holds the `missions` package: the gallery runs this very code
+SOURCE = Path(__file__).resolve().parents[2]  # the checkout: the gallery runs this very code
 SIZES_MB = (0.3, 0.6, 1.0, 1.5, 2.0, 2.5, 3.26, 3.5, 4.0, 1.2, 0.8, 2.8)
 
 

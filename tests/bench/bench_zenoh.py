@@ -1,5 +1,5 @@
 """Distribution benchmarks over Zenoh: botstage's ROS 2 layer against raw eclipse-zenoh, in the
-same run, between two real processes on loopback. Run with `botstage bench zenoh`.
+same run, between two real processes on loopback. Run with `python -m tests.bench zenoh`.
 
 The far process (this module run with ``far``; spawned with ``sys.executable``) connects to this
 one's node and serves, on that one Zenoh session, both sides of every comparison:
@@ -73,7 +73,7 @@ from botstage.skills.remote.proxy import remote_of
 from botstage.skills.remote.ros2_link import SERVICE_TYPE, SkillTickLink, serve_skill_host
 from botstage.skills.testing import DictBoard
 
-SOURCE = Path(__file__).resolve().parents[2]  # holds the `missions` package: the far side runs this very code
+SOURCE = Path(__file__).resolve().parents[2]  # the checkout: the far side runs `tests.bench` from it
 DEPLOYMENT = SOURCE / "missions" / "deployments" / "peoplebot_five_computers.yaml"
 FAR = "bench_far"
 SKILL, INPUTS = "wait", {"duration": 0.0}  # ends in its first step
@@ -231,7 +231,7 @@ class FarProcess:
 
     def __init__(self, endpoint: str, reply_bytes: int) -> None:
         env = {**os.environ, "PYTHONPATH": str(SOURCE)}
-        command = [sys.executable, "-m", "botstage.missions.bench.bench_zenoh", "far", endpoint, str(reply_bytes)]
+        command = [sys.executable, "-m", "tests.bench.bench_zenoh", "far", endpoint, str(reply_bytes)]
         self.process = subprocess.Popen(
             command, cwd=SOURCE, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
         )

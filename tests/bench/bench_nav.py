@@ -1,4 +1,4 @@
-"""Navigation benchmarks. Run with `botstage bench nav`.
+"""Navigation benchmarks. Run with `python -m tests.bench nav`.
 
 - **Pose drift** over a 56 m museum loop, odometry vs EKF vs map-corrected: see
   ``bench_localization.py`` (run from here too).
@@ -126,8 +126,9 @@ def bench_final_pose(goals: int, seed: int = 11) -> dict[str, Any]:
 
 def final_pose_run(goals: int, seed: int) -> tuple[dict[str, Any], np.ndarray]:
     """The Table 2 protocol once: its figures, and each goal's error (x cm, y cm, theta deg)."""
-    from botstage.missions.bench.navsim import NavSim
     from botstage.skills.navigate import Navigate
+
+    from tests.bench.navsim import NavSim
 
     sim = NavSim("museum", "peoplebot", "hall_centre", seed=seed)
     rng = np.random.default_rng(seed)
@@ -212,7 +213,7 @@ def main(quick: bool = False) -> list[dict[str, Any]]:
     results.append(bench_final_pose_seeds((12, 13) if quick else (12, 13, 14, 15, 16, 17, 18, 19), 10 if quick else 50))
     for result in results:
         print(json.dumps(result), flush=True)
-    from botstage.missions.bench import bench_localization  # pose drift over the 56 m loop: prints its own
+    from tests.bench import bench_localization  # pose drift over the 56 m loop: prints its own
 
     return results + bench_localization.main(quick=quick)
 

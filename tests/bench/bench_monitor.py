@@ -1,6 +1,6 @@
 """The live monitor's four figures (the issue's acceptance), with a real page: Debian's headless
 Chromium driven by Playwright on the monitor each run serves on 127.0.0.1. Run with
-`botstage bench monitor` (``--quick``: shorter runs, one repeat; a smoke test of about a minute).
+`python -m tests.bench monitor` (``--quick``: shorter runs, one repeat; a smoke test of about a minute).
 
 Every run with a monitor is started as ``botstage run --monitor --paused`` starts one: a ``Hub``
 and a ``Control`` with a pause queued, the monitor served on a free port, the mission on a thread
@@ -487,7 +487,7 @@ def tree_mission(path: Path) -> Path:
         groups.append({"name": f"group{g:03d}", "repeat": "forever", "child": {"sequence": steps}})
     mission = {
         "name": "monitor_bench_tree",
-        "description": "2,001 nodes for `botstage bench monitor`: 100 sequences of 18 waits, repeated",
+        "description": "2,001 nodes for `python -m tests.bench monitor`: 100 sequences of 18 waits, repeated",
         "seed": SEED,
         "rate_hz": RATE_HZ,
         "until": 3600,

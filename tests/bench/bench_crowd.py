@@ -1,4 +1,4 @@
-"""Crowd centre-of-mass accuracy and cost. Run with ``botstage bench crowd``.
+"""Crowd centre-of-mass accuracy and cost. Run with ``python -m tests.bench crowd``.
 
 **Accuracy**, as the PeopleBot paper measured it (COM error on the Kinect's X and Z axes): the
 simulated PeopleBot stands in the museum hall; each trial puts a group of 2-6 people (each within
@@ -63,8 +63,9 @@ def _group(rng: np.random.Generator, size: int) -> list[tuple[float, float]]:
 
 
 def bench_accuracy(trials: int, seed: int = 5) -> dict[str, Any]:
-    from botstage.missions.bench.navsim import NavSim
     from botstage.skills.perception.people_tracking import sensor_to_map
+
+    from tests.bench.navsim import NavSim
 
     rng = np.random.default_rng(seed)
     ours: list[tuple[float, float]] = []
@@ -157,11 +158,12 @@ def bench_cost(frames: int, people: int = 15, seed: int = 1) -> dict[str, Any]:
 
 def bench_camera(scenes: int, seed: int = 9) -> dict[str, Any]:
     import cv2
-    from botstage.missions.bench.navsim import NavSim
     from botstage.robots.interfaces import Pose2D
     from botstage.robots.sim.people import Person
     from botstage.skills.perception.camera_people import CameraPeopleTracker, detect_faces, load_cascade
     from botstage.skills.perception.people_tracking import sensor_to_map
+
+    from tests.bench.navsim import NavSim
 
     rng = np.random.default_rng(seed)
     cascade = load_cascade()

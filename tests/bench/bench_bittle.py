@@ -1,5 +1,5 @@
 """Bittle's NyBoard driver and its gait odometry, each beside a baseline measured in the same run.
-Run with `botstage bench bittle`.
+Run with `python -m tests.bench bittle`.
 
 - **parser**: OpenCat replies (boot text, acknowledgements, warnings, IMU lines) through
   ``ReplyDecoder`` in 64-byte reads, against the line's 115200-baud byte rate (target >= 100x).
@@ -31,16 +31,17 @@ from typing import Any
 
 import numpy as np
 import serial
-from botstage.missions.bench.bench_serial import Pty, bench_pty_floor, percentile
-from botstage.missions.places import robot_place
 from botstage.robots.clock import SimClock
 from botstage.robots.drivers import opencat_protocol as opencat
 from botstage.robots.drivers.bittle_base import BittleBase, open_bittle
 from botstage.robots.emulators.nyboard import NyBoardEmulator
 from botstage.robots.interfaces import Pose2D
+from botstage.robots.places import robot_place
 from botstage.robots.profile import Profile
 from botstage.robots.sim.backend import SimBackend
 from botstage.robots.sim.world import World
+
+from tests.bench.bench_serial import Pty, bench_pty_floor, percentile
 
 LINE_RATE_BYTES = 115200 / 10  # 8N1: ten bits a byte
 TARGET_PARSER_RATIO = 100.0

@@ -1,4 +1,4 @@
-"""Speech benchmark. Run with `botstage bench speech` (`--quick` for a smoke run, `--tune` to sweep).
+"""Speech benchmark. Run with `python -m tests.bench speech` (`--quick` for a smoke run, `--tune` to sweep).
 
 Audio is made with espeak-ng (Debian package espeak-ng) in several voices and speeds, resampled
 to 16 kHz, and goes through what `botstage speech recognize` does with a file: voice activity

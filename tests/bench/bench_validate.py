@@ -7,7 +7,7 @@ Each row gives the check's time (the whole of `botstage.missions.check.check`: r
 mission's keys, building every node, machines, key usage), `yaml.safe_load` of the same file
 in the same run as the baseline, and their ratio. Target: under 5 s for 20,000 nodes.
 
-Run with ``botstage bench validate``.
+Run with ``python -m tests.bench validate``.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from botstage.missions import MISSIONS_DIR
 from botstage.missions.check import check
 
 NODES = 20_000
@@ -111,7 +112,7 @@ def missed(results: list[dict[str, Any]]) -> list[str]:
 def main(quick: bool = False) -> list[dict[str, Any]]:
     nodes = 2_000 if quick else NODES
     repeats = 1 if quick else 3
-    check(Path(__file__).parents[1] / "hello.yaml")  # skills and node kinds loaded once, outside the timing
+    check(MISSIONS_DIR / "hello.yaml")  # skills and node kinds loaded once, outside the timing
     results = []
     with tempfile.TemporaryDirectory(prefix="botstage-bench-") as folder:
         for name, make in (("siblings", siblings), ("mixed", mixed)):

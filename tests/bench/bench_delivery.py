@@ -12,7 +12,7 @@ orders: tables 2, 4 and 6) and reports:
   camera's scan matched to the map). The first two ride along passively: they are read
   between ticks and never steer.
 
-Run with ``botstage bench delivery`` (``--quick``: one seed).
+Run with ``python -m tests.bench delivery`` (``--quick``: one seed).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ and 4° off; and Chefbot (odometry + IMU, no laser) on a restaurant loop.
 The simulator's encoders count the wheels' turning, not the ground they covered (wheel slip),
 so odometry drifts as on a real floor.
 
-Run with ``botstage bench nav`` or ``python -m botstage.missions.bench.bench_localization`` (``--quick`` for one seed).
+Run with ``python -m tests.bench nav`` or ``python -m tests.bench.bench_localization`` (``--quick`` for one seed).
 """
 
 from __future__ import annotations
@@ -33,10 +33,10 @@ from typing import Any
 import numpy as np
 from botstage.robots import PROFILES_DIR
 from botstage.robots.clock import SimClock
-from botstage.robots.gridmap import FREE, GridMap, load
+from botstage.robots.gridmap import FREE, MAPS_DIR, GridMap, load
 from botstage.robots.interfaces import LaserScan, Pose2D
 from botstage.robots.profile import Device, Profile, load_profile
-from botstage.robots.sim.backend import MAPS_DIR, SimBackend
+from botstage.robots.sim.backend import SimBackend
 from botstage.robots.sim.world import World
 from botstage.skills.nav.controller import FollowerParams, PathFollower
 from botstage.skills.nav.costmap import inflated_costs

@@ -1,5 +1,5 @@
 """The PeopleBot entertainer's default run: wall time of 10 simulated minutes, and bumps. Run
-with `botstage bench entertainer`.
+with `python -m tests.bench entertainer`.
 
 The default mission (missions/peoplebot_entertainer.yaml) runs as `botstage run` runs it — the
 simulated museum with its people, the Kinect-like tracker, the rendered camera, the simulated

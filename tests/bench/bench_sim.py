@@ -6,7 +6,7 @@ people tracker every tick, with the robot driving in circles. Not included: came
 rendering and audio, so this is an upper bound for a robot that reads its camera every tick; a second
 row measures the camera's rendering alone (milliseconds per 640x480 frame).
 
-Run with ``botstage bench sim``.
+Run with ``python -m tests.bench sim``.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ import time
 from typing import Any
 
 from botstage.robots.clock import SimClock
-from botstage.robots.gridmap import load
+from botstage.robots.gridmap import MAPS_DIR, load
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import load_profile
-from botstage.robots.sim.backend import MAPS_DIR, SimBackend
+from botstage.robots.sim.backend import SimBackend
 
 TARGET = 200.0  # sim seconds per wall second
 

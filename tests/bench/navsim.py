@@ -10,11 +10,11 @@ from typing import Any
 from botstage.missions.services import RobotServices
 from botstage.robots import PROFILES_DIR
 from botstage.robots.clock import SimClock
-from botstage.robots.gridmap import GridMap
+from botstage.robots.gridmap import GridMap, map_path
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile
-from botstage.robots.sim.backend import SimBackend, map_path
+from botstage.robots.sim.backend import SimBackend
 from botstage.skills.base import Outcome, Skill, SkillContext, SkillLogger
 from botstage.skills.execution import SkillExecution
 from botstage.skills.testing import DictBoard as Board

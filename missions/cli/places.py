@@ -1,4 +1,4 @@
-"""Maps on the command line: what a shipped or given map holds, and the places a mission may name."""
+"""`botstage places MAP`: what a shipped or given map holds, and the places a mission may name."""
 
 from __future__ import annotations
 
@@ -15,9 +15,8 @@ def places(
     as_json: bool = typer.Option(False, "--json", help="print the places as JSON: {name: [x, y, yaw]}"),
 ) -> None:
     """List a map's named places (what `start:`, `goal:` and `gatherings: at:` may name), with the map's size."""
-    from botstage.robots.gridmap import MapError
+    from botstage.robots.gridmap import MapError, known_maps, map_path
     from botstage.robots.gridmap import load as load_map
-    from botstage.robots.sim.backend import known_maps, map_path
 
     where = map_path(world)
     if where is None:
