@@ -32,6 +32,11 @@ def text(value: object) -> str:
     return out.replace("|", "\\|").replace("\b", "")
 
 
+def type_text(value: object) -> str:
+    """A type for a code span, where Markdown cannot escape a table's `|`: `str | None` is `str or None`."""
+    return " or ".join(part.strip() for part in str(value).split("|"))
+
+
 def one_line(value: object) -> str:
     return " ".join(text(value).split())
 
@@ -41,6 +46,7 @@ def one_line(value: object) -> str:
 
 def cli_root() -> Any:
     import typer.main
+
     from botstage.missions.cli import app
 
     return typer.main.get_command(app)
@@ -126,7 +132,7 @@ def _options(model: Any, skip: set[str]) -> list[str]:
             continue
         default = "required" if field.is_required() else f"default `{field.default!r}`"
         kind = getattr(field.annotation, "__name__", None) or str(field.annotation).replace("typing.", "")
-        rows.append(f"| `{name}` | `{text(kind)}` | {default} | {one_line(field.description)} |")
+        rows.append(f"| `{name}` | `{type_text(kind)}` | {default} | {one_line(field.description)} |")
     return rows
 
 
@@ -162,7 +168,7 @@ def _ports(ports: dict[str, Any]) -> list[str]:
     rows = []
     for name, port in ports.items():
         default = "required" if port["required"] else f"default `{port.get('default')!r}`"
-        rows.append(f"| `{name}` | `{text(port['type'])}` | {text(default)} | {one_line(port['doc'])} |")
+        rows.append(f"| `{name}` | `{type_text(port['type'])}` | {text(default)} | {one_line(port['doc'])} |")
     return rows
 
 
@@ -186,14 +192,15 @@ def skills_page() -> str:
         lines += [f"From {text(registry.origin(name))}; outcomes {outcomes} (success: {success}).", ""]
         for title, ports in (("input", info["inputs"]), ("output", info["outputs"])):
             if ports:
-                lines += [f"| {title} | type | | meaning |", "|---|---|---|---|", *_ports(ports), ""]
+                lines += [f"| {title} | type | default | meaning |", "|---|---|---|---|", *_ports(ports), ""]
         params = info["params"].get("properties", {})
         if params:
             lines += ["| parameter | type | default | meaning |", "|---|---|---|---|"]
             for pname, prop in params.items():
                 kind = prop.get("type") or " or ".join(p.get("type", "?") for p in prop.get("anyOf", []))
                 default = f"`{prop['default']!r}`" if "default" in prop else "required"
-                lines.append(f"| `{pname}` | `{text(kind)}` | {text(default)} | {one_line(prop.get('description'))} |")
+                meaning = one_line(prop.get("description"))
+                lines.append(f"| `{pname}` | `{type_text(kind)}` | {text(default)} | {meaning} |")
             lines.append("")
     return "\n".join(lines) + "\n"
 
