@@ -6,11 +6,11 @@ from __future__ import annotations
 import time
 
 import pytest
+from py_trees.common import Status
+
 from botstage.behaviors.engine import Engine
 from botstage.robots.clock import SimClock
 from botstage.skills.registry import Registry
-from py_trees.common import Status
-
 from tests.bench.bench_tick import timeouts_spec
 from tests.conftest import TEST_SKILLS
 

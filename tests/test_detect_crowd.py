@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile
 from botstage.skills.detect_crowd import DetectCrowd
@@ -14,7 +15,6 @@ from botstage.skills.perception.camera_people import CASCADE, faces_to_people
 from botstage.skills.perception.crowd import CrowdTracker, group
 from botstage.skills.perception.people_tracking import map_to_sensor, sensor_to_map
 from botstage.skills.perception.tracking import PeopleTracks
-
 from tests.bench.navsim import NavSim
 
 

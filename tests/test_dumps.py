@@ -10,8 +10,8 @@ import zlib
 from pathlib import Path
 
 import pytest
-from botstage.behaviors.render import FORMATS
 
+from botstage.behaviors.render import FORMATS
 from tests.test_cli import botstage
 from tests.tools import require
 

@@ -15,13 +15,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.drivers.chefbot_base import ChefbotBase, open_chefbot
 from botstage.robots.drivers.launchpad_protocol import BatteryVolts, BoardTime, Encoders, Quaternion
 from botstage.robots.drivers.serial_link import RateLimitedLog
 from botstage.robots.drivers.wheel_control import wheel_targets
 from botstage.robots.interfaces import Battery, Drive, Imu, Odometry, Pose2D, Sonar, check_interfaces
-
 from tests.launchpad_helpers import FAILSAFE_S, Board, Delivered, chefbot, commands, wait_until
 from tests.test_launchpad_protocol import VALID, mutate
 

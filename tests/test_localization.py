@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import FREE, OCCUPIED, GridMap, load
 from botstage.robots.interfaces import LaserScan, Pose2D
@@ -20,7 +21,6 @@ from botstage.robots.sim.world import World
 from botstage.skills.nav.ekf import PoseEKF, wrap
 from botstage.skills.nav.localization import Localizer, LocalizerParams, PoseEstimate, increment
 from botstage.skills.nav.scan_match import MatchResult, ScanMatcher
-
 from tests.bench.bench_localization import drive_loop, robot_profile
 
 MUSEUM = load("robots/maps/museum.yaml")

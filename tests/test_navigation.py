@@ -7,13 +7,13 @@ import math
 
 import numpy as np
 import pytest
+
 from botstage.robots.gridmap import FREE, OCCUPIED, GridMap
 from botstage.skills.approach import Approach
 from botstage.skills.back_to_point import BackToPoint
 from botstage.skills.navigate import Navigate
 from botstage.skills.recoveries import BackUp, ClearCostmap, Spin
 from botstage.skills.wander import Wander
-
 from tests.bench.navsim import NavSim, grid
 
 

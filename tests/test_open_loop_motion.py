@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.sim.world import inflate
@@ -14,7 +15,6 @@ from botstage.skills.move import Move
 from botstage.skills.nav.contact import ContactWatch
 from botstage.skills.nav.sweep import MARGIN, in_the_way, sweep
 from botstage.skills.recoveries import BackUp, Spin
-
 from tests.bench.navsim import NavSim
 
 # the museum's south wall: its last occupied cells are centred on y = -0.175; the PeopleBot is 0.30 m round

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from botstage.skills.speech.wav import write_wav
 
 DATA = Path(__file__).parent / "data" / "speech"

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from botstage.skills.speech.recognizer import COMMANDS, Recognizer, garbage_words, shared_recognizer
 from botstage.skills.speech.vad import find_utterances
 from botstage.skills.speech.wav import read_wav

@@ -32,6 +32,7 @@ import signal
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.verbs import LazyGroup
 
 CLI = "botstage.missions.cli"

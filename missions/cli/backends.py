@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from botstage.missions.cli.common import _stderr, console
 from rich.table import Table
+
+from botstage.missions.cli.common import _stderr, console
 
 
 def _options(described: dict[str, Any]) -> str:

@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import _fail, console, input_file, number, output_dir
 
 DAYS = number(ge=1, le=36500)

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import NON_NEGATIVE, _fail, _stderr, console, no_special_files, output_dir
 
 
@@ -30,10 +31,11 @@ def chat(
     """
     import random
 
+    from rich.markup import escape
+
     from botstage.skills.chat.cache import load_brain
     from botstage.skills.chat.chatbot import Chatbot
     from botstage.skills.chat.persona import aiml_files
-    from rich.markup import escape
 
     brain = load_brain(aiml_files(alice, aiml), cache_dir)
     _stderr([str(problem) for problem in brain.problems] + [f"note: {note}" for note in brain.notes])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 import typer
+
 from botstage.missions.cli.common import NON_NEGATIVE, _fail, console, number
 from botstage.missions.cli.opening import robot_place
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import POSITIVE, TCP_PORT, _fail, _stderr, output_dir
 
 

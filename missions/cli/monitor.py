@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import _fail, console
 from botstage.missions.cli.live import HOST_HELP
 

@@ -6,8 +6,9 @@ import json
 import math
 
 import typer
-from botstage.missions.cli.common import _fail, console
 from rich.table import Table
+
+from botstage.missions.cli.common import _fail, console
 
 
 def places(

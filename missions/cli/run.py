@@ -7,6 +7,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
+from rich.live import Live
+from rich.table import Table
+
 from botstage.missions import DEFAULT_MISSION
 from botstage.missions.cli.common import (
     NON_NEGATIVE,
@@ -21,8 +24,6 @@ from botstage.missions.cli.live import HOST_HELP, live_monitor
 from botstage.missions.cli.opening import backend_help, backend_options, observer_help, observers
 from botstage.robots.backend_registry import DEFAULT
 from botstage.robots.limits import MAX_SECONDS
-from rich.live import Live
-from rich.table import Table
 
 if TYPE_CHECKING:
     from botstage.missions.groot2.publisher import Groot2Publisher

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import _fail, console, input_file, output_file
 
 scenario_app = typer.Typer(no_args_is_help=True, help="Scenario files: make them from recorded runs.")

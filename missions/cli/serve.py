@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import typer
+
 from botstage.missions.cli.common import NON_NEGATIVE, _fail, number
 from botstage.missions.cli.distributed import CONNECT_HELP, check
 from botstage.missions.cli.live import HOST_HELP, live_monitor
@@ -82,6 +83,7 @@ def robot(
     watchdog time (0.5 s), the drive stops.
     """
     import zenoh
+
     from botstage.robots.backend import OpenRequest
     from botstage.robots.backend_registry import BackendRegistry
     from botstage.robots.ros2.endpoints import ROUTER_LISTEN

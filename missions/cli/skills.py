@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from botstage.missions.cli.common import _stderr, console
 from rich.table import Table
+
+from botstage.missions.cli.common import _stderr, console
 
 
 def skills() -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import typer
+
 from botstage.missions.cli.common import NON_NEGATIVE, POSITIVE, _fail, console, number
 from botstage.missions.cli.opening import backend_help, open_backend, robot_place
 from botstage.robots.backend_registry import DEFAULT
@@ -60,8 +61,9 @@ def _open_served(
     profile: Any, pose: Any, clock: Any, connect: list[str], domain_id: int, namespace: str, certs: Path | None
 ) -> Any:
     """The served robot, or exit with the reason (a bad endpoint, namespace or certificate: 2; nobody answering: 1)."""
-    from botstage.robots.ros2.teleop import open_served
     from pydantic import ValidationError
+
+    from botstage.robots.ros2.teleop import open_served
 
     security = None
     if certs is not None:

@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from botstage.missions.cli.common import _fail, _stderr, console, input_paths, os_problem, output_file
 from rich.table import Table
+
+from botstage.missions.cli.common import _fail, _stderr, console, input_paths, os_problem, output_file
 
 
 def test_scenarios(

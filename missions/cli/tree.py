@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+
 from botstage.missions import DEFAULT_MISSION
 from botstage.missions.cli.common import NON_NEGATIVE, input_file, output_file
 from botstage.missions.cli.pictures import FORMAT_HELP, draw

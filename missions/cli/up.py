@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+
 from botstage.missions.cli.common import NON_NEGATIVE, console
 from botstage.missions.cli.distributed import (
     check,

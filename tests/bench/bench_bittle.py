@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 import serial
+
 from botstage.robots.clock import SimClock
 from botstage.robots.drivers import opencat_protocol as opencat
 from botstage.robots.drivers.bittle_base import BittleBase, open_bittle
@@ -40,7 +41,6 @@ from botstage.robots.places import robot_place
 from botstage.robots.profile import Profile
 from botstage.robots.sim.backend import SimBackend
 from botstage.robots.sim.world import World
-
 from tests.bench.bench_serial import Pty, bench_pty_floor, percentile
 
 LINE_RATE_BYTES = 115200 / 10  # 8N1: ten bits a byte

@@ -28,6 +28,7 @@ import time
 from typing import Any
 
 import numpy as np
+
 from botstage.skills.perception.crowd import CrowdTracker
 from botstage.skills.perception.people_tracking import map_to_sensor
 from botstage.skills.perception.tracking import PeopleTracks
@@ -64,7 +65,6 @@ def _group(rng: np.random.Generator, size: int) -> list[tuple[float, float]]:
 
 def bench_accuracy(trials: int, seed: int = 5) -> dict[str, Any]:
     from botstage.skills.perception.people_tracking import sensor_to_map
-
     from tests.bench.navsim import NavSim
 
     rng = np.random.default_rng(seed)
@@ -158,11 +158,11 @@ def bench_cost(frames: int, people: int = 15, seed: int = 1) -> dict[str, Any]:
 
 def bench_camera(scenes: int, seed: int = 9) -> dict[str, Any]:
     import cv2
+
     from botstage.robots.interfaces import Pose2D
     from botstage.robots.sim.people import Person
     from botstage.skills.perception.camera_people import CameraPeopleTracker, detect_faces, load_cascade
     from botstage.skills.perception.people_tracking import sensor_to_map
-
     from tests.bench.navsim import NavSim
 
     rng = np.random.default_rng(seed)

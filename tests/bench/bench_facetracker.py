@@ -40,6 +40,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+
 from botstage.robots.backend import ScriptedWalk
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import CameraInfo
@@ -51,7 +52,6 @@ from botstage.skills.perception.face_tracking import FaceDetector
 from botstage.skills.testing import DictBoard
 from botstage.skills.track_face import TrackFace
 from botstage.skills.workers import Workers
-
 from tests.bench.bench_serial import percentile
 
 RATE_HZ = 30.0  # the webcam's frame rate: a frame a tick

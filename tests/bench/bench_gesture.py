@@ -47,7 +47,6 @@ from botstage.robots.drivers import rosserial_protocol as rp
 from botstage.robots.drivers.rosserial import BAUD, RosserialDriver
 from botstage.robots.emulators.imu_arduino import BUFFER_SIZE, IMU_TOPIC, TF_TOPIC, VECTOR3, HandScript, as_published
 from botstage.skills.gesture import GestureConfig, GestureConverter
-
 from tests.bench.bench_serial import TARGET_P99_MS, Pty, bench_pty_floor, percentile
 
 LINE_RATE_BYTES = BAUD / 10  # 8N1: ten bits a byte

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
 from botstage.robots import PROFILES_DIR
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import FREE, MAPS_DIR, GridMap, load

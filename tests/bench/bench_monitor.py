@@ -70,6 +70,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
+
 from botstage.missions import DEFAULT_MISSION
 from botstage.missions.monitor.control import Control
 from botstage.missions.monitor.hub import Hub

@@ -26,6 +26,7 @@ import time
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.gridmap import FREE, OCCUPIED, GridMap
 from botstage.skills.nav.costmap import inflated_costs
 from botstage.skills.nav.planner import Planner, Unreachable
@@ -127,7 +128,6 @@ def bench_final_pose(goals: int, seed: int = 11) -> dict[str, Any]:
 def final_pose_run(goals: int, seed: int) -> tuple[dict[str, Any], np.ndarray]:
     """The Table 2 protocol once: its figures, and each goal's error (x cm, y cm, theta deg)."""
     from botstage.skills.navigate import Navigate
-
     from tests.bench.navsim import NavSim
 
     sim = NavSim("museum", "peoplebot", "hall_centre", seed=seed)

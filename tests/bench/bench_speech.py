@@ -33,10 +33,11 @@ import wave
 from typing import Any, NamedTuple
 
 import numpy as np
+from scipy.signal import resample_poly
+
 from botstage.skills.speech.embedding import EmbeddingRecognizer
 from botstage.skills.speech.recognizer import COMMANDS, CommandRecognizer, Recognizer
 from botstage.skills.speech.vad import find_utterances
-from scipy.signal import resample_poly
 
 SAY = {"PHOTO": "photo", "YES": "yes", "WHATSUP": "what's up", "CANCEL": "cancel", "CIAO": "ciao"}
 VOICES = (

@@ -24,11 +24,12 @@ from typing import Any
 
 import py_trees
 import yaml
+from transitions.extensions.nesting import HierarchicalMachine
+
 from botstage.behaviors.engine import Engine
 from botstage.robots.clock import SimClock
 from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
 from botstage.skills.registry import Registry
-from transitions.extensions.nesting import HierarchicalMachine
 
 GROUPS, LEAVES = 10, 99  # 1 root + 10 groups + 990 leaves = 1,001 nodes
 TARGET = 1.2
@@ -268,7 +269,6 @@ def _nav2_drive(trees: dict[str, Any], root: str, ticks: int) -> float:
     driving from the museum's entrance to exhibit_a under the tree: planning at 1 Hz, following."""
     from botstage.behaviors.kinds import NodeKinds
     from botstage.behaviors.nav2.navigator import ERROR_CODE_PREFIXES
-
     from tests.bench.navsim import NavSim
 
     sim = NavSim("museum", "peoplebot", "entrance", seed=3)

@@ -38,6 +38,7 @@ from typing import Any
 import cv2
 import httpx
 import numpy as np
+
 from botstage.skills.outbox.outbox import Outbox
 from botstage.skills.outbox.settings import OutboxSettings
 from botstage.skills.outbox.store import UPLOADED

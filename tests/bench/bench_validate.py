@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
 from botstage.missions import MISSIONS_DIR
 from botstage.missions.check import check
 

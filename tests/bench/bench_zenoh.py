@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 import zenoh
+
 from botstage.missions import DEFAULT_MISSION
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import LaserScan

@@ -102,12 +102,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from botstage.skills.speech.embedding import CLASSES, Classifier, SpeechEmbedding, pooled, weights_path
-from botstage.skills.speech.recognizer import COMMANDS
-from botstage.skills.speech.vad import find_utterances
 from scipy.optimize import minimize
 from scipy.signal import fftconvolve, resample_poly
 
+from botstage.skills.speech.embedding import CLASSES, Classifier, SpeechEmbedding, pooled, weights_path
+from botstage.skills.speech.recognizer import COMMANDS
+from botstage.skills.speech.vad import find_utterances
 from tests.bench.bench_speech import (
     PAD,
     PHRASES,
