@@ -10,8 +10,8 @@ its step a frame, or the proportional step) and the pan is sent there.
 The proportional step (``mode: proportional``, beyond the chapter) is ``gain`` rad per pixel of the
 face's offset from the centre, at most ``max_step`` a frame: 0.04 rad, about what the AX-12A turns
 in a frame (1.17 rad/s at 30 fps). A larger cap lets the commands run ahead of the shaft while the
-frames still show the face far off, and the face overshoots the dead band (``botstage bench
-facetracker``).
+frames still show the face far off, and the face overshoots the dead band (``python -m
+tests.bench facetracker``).
 
 With no face for ``lost_after`` s the pan sweeps between the controller's limits at
 ``sweep_rate`` rad/s, first towards the side the face was last seen on (where a walker went),

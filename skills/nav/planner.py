@@ -1,6 +1,6 @@
 """Global planning: A* on an inflated costmap, in C++ through pyastar2d.
 
-pyastar2d plans a 1000 x 1000 grid in a few milliseconds (`botstage bench nav`), where a
+pyastar2d plans a 1000 x 1000 grid in a few milliseconds (`python -m tests.bench nav`), where a
 pure-Python A* would take seconds; scikit-image's minimum-cost paths were measured 30 times
 slower. Paths come back as world points, thinned to one every ``spacing`` metres.
 """

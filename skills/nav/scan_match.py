@@ -12,7 +12,7 @@ off but still within the search window (0.3 m, 6°) while its covariance claims 
 good matches gated out as jumps; the ``Localizer`` then inflates the covariance at each such
 rejection until the gate lets the map in (tested with 0.22 m and 3° off at 1 cm confidence).
 
-Figures (``python -m botstage.missions.bench.bench_localization``, 2-core VM): 0.47 ms median and 0.55 ms
+Figures (``python -m tests.bench.bench_localization``, 2-core VM): 0.47 ms median and 0.55 ms
 p90 per match on the museum loop (181 beams, 0.05 m map; target 5 ms), 1.5 ms median and 2.2
 ms p90 with the window at its widest; from 300 random museum poses with the prior 0.15 m and 4°
 off, 93% accepted (the rest refused as ambiguous: a robot facing one wall) with 0.5 cm mean and

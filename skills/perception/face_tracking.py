@@ -22,7 +22,7 @@ faces it would turn back and forth between them).
 Beyond the chapter: a proportional step (``gain`` rad per pixel of the face's offset from the
 centre, at most ``max_step`` a frame), which re-centres a face far off faster than 0.01 rad a
 frame can, as an option beside the fixed step (measured against it on the simulated head by
-``botstage bench facetracker``; ``skills/track_face.py`` runs both).
+``python -m tests.bench facetracker``; ``skills/track_face.py`` runs both).
 """
 
 from __future__ import annotations

@@ -23,12 +23,12 @@ included) is centred in at least ``MIN_SECONDS`` of digital silence, so that a s
 gives several vectors, and the vectors are pooled into one fixed-size feature: their mean, their
 maximum and their standard deviation, and the log of the utterance's duration (289 numbers).
 Adding the sequence itself (five vectors evenly spaced along it, or around its middle) did not
-separate commands from near-homophones better on the tuning set (missions/bench/train_speech.py).
+separate commands from near-homophones better on the tuning set (tests/bench/train_speech.py).
 
 **The classifier** (``commands.npz``, about 70 kB) is a small network (one hidden layer of 64
-tanh units, a softmax over six classes: the five commands and ``other``), trained by ``botstage
-speech train`` (missions/bench/train_speech.py; how, and on which voices, is in that file and the
-weights' ``meta``). Its confidence is the softmax probability of the best class; a command is
+tanh units, a softmax over six classes: the five commands and ``other``), trained by ``python -m
+tests.bench train-speech`` in a checkout (tests/bench/train_speech.py; how, and on which voices, is
+in that file and the weights' ``meta``). Its confidence is the softmax probability of the best class; a command is
 accepted when it is the best class and its probability reaches that command's threshold, each
 chosen on tuning voices (forty espeak-ng voices that neither training nor the benchmark uses;
 ten gave too few trials to choose well): a word that sounds like one command ("yet") raises

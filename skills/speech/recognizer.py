@@ -13,7 +13,7 @@ frames; that coverage is the confidence. Utterances under 20 dB estimated SNR go
 noise suppressor first (skills/speech/denoise.py). WHATSUP, CIAO and CANCEL get pronunciations,
 and YES and WHATSUP variants that the en-us phone loop heard in the tuning voices' clips.
 
-**History, short.** Every value was chosen with ``botstage bench speech --tune`` on espeak-ng
+**History, short.** Every value was chosen with ``python -m tests.bench speech --tune`` on espeak-ng
 voices and phrases the benchmark does not use (bench_speech.py's ``TUNE_*``). Tried and dropped,
 each within a point or two of the chosen point or on the same commands-against-false-accepts
 curve: a phone-loop likelihood ratio, keyword-spotting scores, a second forced-choice pass,

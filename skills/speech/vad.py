@@ -9,7 +9,7 @@ of a word is under the onset threshold) and ``tail`` seconds after its last loud
 
 Energy is enough here because the noise it must ignore is steady (the simulator's room, white
 or pink noise, a fan): at 10 dB SNR voiced speech stands 10-20 dB above the floor. Thresholds
-were checked on the benchmark's espeak-ng utterances (missions/bench/bench_speech.py): with a 6 dB
+were checked on the benchmark's espeak-ng utterances (tests/bench/bench_speech.py): with a 6 dB
 onset over 3 frames, none of 72 utterances at 10 dB SNR (white or pink) was missed and each was
 found whole (4 of 72 missed at 5 dB white); a minute of white noise alone starts nothing, a
 minute of pink noise (whose power swings more from frame to frame) starts about ten short
