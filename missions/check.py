@@ -275,20 +275,18 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
 
 
 def _check_backend_sections(profile: Profile, locations: Locations, out: _Collector) -> None:
-    """A profile's backend sections (``ros2:``) are checked by their backend, found by name; a
-    section whose backend is not installed says which plug-in set has it."""
-    from botstage.robots.backend import BackendError
+    """A profile's backend sections (``ros2:``) are checked by their backend, found by name. A
+    section whose backend is not installed is not read by anything here: the backend checks it
+    when it is installed, and opening that backend says which set to install."""
     from botstage.robots.backend_registry import BackendRegistry
 
     for section in ("ros2",):
         if getattr(profile, section).model_dump(exclude_defaults=True) == {}:
             continue
-        try:
-            kind = BackendRegistry.default().get(section)
-        except BackendError as exc:
-            out.problems.append(Problem(locations.find((section,)), f"{section}: {exc}"))
+        backends = BackendRegistry.default()
+        if section not in backends:
             continue
-        for where, message, hint in kind.check_profile(profile):
+        for where, message, hint in backends.get(section).check_profile(profile):
             out.problems.append(Problem(locations.find(where), message, hint))
 
 

@@ -72,11 +72,8 @@ def discover(
         lacking = _lacking_extra(ep)
         if lacking:
             dist_name = _distribution(ep)
-            problems.append(
-                PluginProblem(
-                    label, f"botstage's {lacking} set is not installed: {install_hint(dist_name, lacking)}", lacking
-                )
-            )
+            reason = f"{dist_name}'s {lacking} set, which is not installed: {install_hint(dist_name, lacking)}"
+            problems.append(PluginProblem(label, reason, lacking))
             continue
         try:
             value = ep.load()
