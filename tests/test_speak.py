@@ -16,7 +16,7 @@ from botstage.missions.transcript import read_transcript
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import AudioSpeaker, Speaker
 from botstage.robots.sim.devices import SimSpeaker
-from botstage.skills.chat.tts import SpeechError, read_wav, synthesise
+from botstage.skills.tts import SpeechError, read_wav, synthesise
 from botstage.skills.speak import Speak
 
 from tests.test_converse import Harness, brain_cache, isolated_cache  # noqa: F401 (fixtures: the test cache)
