@@ -23,11 +23,12 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+from py_trees.common import Status
+
 from botstage.behaviors.blackboard import BlackboardError
 from botstage.behaviors.btcpp.script import Script as CompiledScript
 from botstage.behaviors.btcpp.script import ScriptRuntimeError
 from botstage.behaviors.decorators import ClockTimeout
-from py_trees.common import Status
 
 if TYPE_CHECKING:
     from botstage.behaviors.blackboard import NodeAccess
@@ -38,7 +39,17 @@ DONE = (Status.SUCCESS, Status.FAILURE)
 
 
 def halt(node: Behaviour) -> None:
-    """BT.CPP's haltChild: a running node is halted; one that is not running is already IDLE to us."""
+    """BT.CPP's ``haltChild``: a running node is halted (its skill cancelled), and any node is
+    reset to IDLE (INVALID here), as ``src/control_node.cpp`` does for every child."""
+    if node.status is not Status.INVALID:
+        node.stop(Status.INVALID)
+
+
+def halt_running(node: Behaviour) -> None:
+    """Halt a running node and leave a completed one as it is. Only a reactive control's halting of
+    its other children uses it: BT.CPP resets those to IDLE too, but a completed child restarts on
+    its next tick anyway, and Nav2's GoalUpdated, which notes the goal when IDLE, must keep what it
+    noted across the reactive ticks of a ReactiveFallback (tests/test_nav2_nodes.py)."""
     if node.status is Status.RUNNING:
         node.stop(Status.INVALID)
 
@@ -53,14 +64,20 @@ def threshold(value: int, children: int) -> int:
     return max(children + value + 1, 0) if value < 0 else value
 
 
-class _Control(py_trees.composites.Composite):
-    """A control node whose whole tick is its own (BT.CPP's ControlNode)."""
+class ControlNode(py_trees.composites.Composite):
+    """BT.CPP's ``ControlNode``, the one base of BT.CPP's controls and Nav2's (upstream Nav2's
+    controls derive from it too): a control whose whole tick is its own.
+
+    The halt rule is ``src/control_node.cpp``'s: halting the node (``stop(INVALID)`` while it
+    runs) halts its running children, resets every child to IDLE and forgets the node's own
+    progress (``_reset``, the subclass's ``halt()``). A node only reset to IDLE when it is not
+    running keeps its fields, as BT.CPP's ``resetStatus`` does (SequenceWithMemory's index)."""
 
     def _reset(self) -> None:
-        """Forget the node's progress (called when it is halted)."""
+        """Forget the node's progress (called when it is halted while running)."""
 
     def terminate(self, new_status: Status) -> None:
-        if new_status is Status.INVALID:
+        if new_status is Status.INVALID and self.status is Status.RUNNING:
             self._reset()
 
     def _reset_children(self) -> None:
@@ -77,7 +94,7 @@ class _Control(py_trees.composites.Composite):
         yield self
 
 
-class Sequence(_Control):
+class Sequence(ControlNode):
     """Sequence and Fallback, with or without memory.
 
     ``carry_on`` is the status that moves to the next child (SUCCESS for a sequence, FAILURE for a
@@ -135,7 +152,7 @@ class Sequence(_Control):
         self.skipped = all_skipped
 
 
-class Reactive(_Control):
+class Reactive(ControlNode):
     """ReactiveSequence and ReactiveFallback: every tick from the first child; a child that runs
     halts every other, the first child that ends the node (``decisive``) halts the rest."""
 
@@ -156,7 +173,7 @@ class Reactive(_Control):
             if child.status is Status.RUNNING:
                 for other, sibling in enumerate(self.children):
                     if other != index:
-                        halt(sibling)
+                        halt_running(sibling)
                 yield from self._running()
                 return
             if child.status is self.decisive:
@@ -167,7 +184,7 @@ class Reactive(_Control):
         self.skipped = all_skipped
 
 
-class Parallel(_Control):
+class Parallel(ControlNode):
     """Every child that has not completed is ticked; SUCCESS at ``success_count`` successes, FAILURE
     at ``failure_count`` failures or when success became impossible (checked after each child)."""
 
@@ -208,7 +225,7 @@ class Parallel(_Control):
         yield from self._running()
 
 
-class ParallelAll(_Control):
+class ParallelAll(ControlNode):
     """Every child runs to completion; then FAILURE if at least ``max_failures`` failed."""
 
     def __init__(self, name: str, children: list[Behaviour], max_failures: int) -> None:
@@ -238,7 +255,7 @@ class ParallelAll(_Control):
         yield from self._end(Status.FAILURE if failed else Status.SUCCESS)
 
 
-class IfThenElse(_Control):
+class IfThenElse(ControlNode):
     """The condition (first child) is ticked until it completes, then the branch it chose runs to
     completion without the condition being ticked again; no else branch means FAILURE."""
 
@@ -272,7 +289,7 @@ class IfThenElse(_Control):
         yield from self._end(branch.status)
 
 
-class WhileDoElse(_Control):
+class WhileDoElse(ControlNode):
     """The condition is ticked every tick; it picks the branch to tick, halting the other one."""
 
     def tick(self) -> Iterator[Behaviour]:
@@ -300,7 +317,7 @@ class WhileDoElse(_Control):
         yield from self._end(branch.status)
 
 
-class Switch(_Control):
+class Switch(ControlNode):
     """The child of the first case equal to the blackboard value (the last child by default);
     a different case than the running one halts it first."""
 

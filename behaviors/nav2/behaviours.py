@@ -3,12 +3,13 @@
 Each class follows Nav2's own ``tick()``/``halt()`` (nav2_behavior_tree/plugins/control/*.cpp and
 plugins/decorator/*.cpp). Two translations hold throughout, as in ``botstage.behaviors.btcpp.behaviours``:
 
-- BT.CPP's ``haltChild`` halts a running child and resets any other to IDLE; here a running child
-  is stopped (its skill cancelled) and a completed one is set back to INVALID, which is IDLE. A
-  node's own progress is forgotten only when it is halted while RUNNING (Nav2's ``halt()``).
-- Several Nav2 decorators start afresh when they are IDLE (their parent reset them). botstage's
-  BT.CPP controls reset only running children, so a node also counts as IDLE when it was not
-  ticked in the previous tick of the tree (``Fresh``): a node ticked every tick is one iteration.
+- Nav2's controls are BT.CPP's ``ControlNode`` (``botstage.behaviors.btcpp.behaviours``), with its
+  one halt rule: ``haltChild`` halts a running child (its skill cancelled) and sets any child
+  back to IDLE (INVALID); a node's own progress is forgotten only when it is halted while RUNNING.
+- Several Nav2 decorators start afresh when they are IDLE (their parent reset them). A parent
+  that is not a BT.CPP control (a botstage kind) may leave a completed child as it is, so a node
+  also counts as IDLE when it was not ticked in the previous tick of the tree (``Fresh``): a node
+  ticked every tick is one iteration.
 
 Time is the run's clock, never the wall clock.
 """
@@ -23,17 +24,13 @@ from typing import TYPE_CHECKING, Any
 import py_trees
 from py_trees.common import Status
 
+from botstage.behaviors.btcpp.behaviours import ControlNode, halt
+
 if TYPE_CHECKING:
     from botstage.behaviors.blackboard import NodeAccess
     from botstage.robots.clock import Clock
 
 Behaviour = py_trees.behaviour.Behaviour
-
-
-def reset(node: Behaviour) -> None:
-    """BT.CPP's haltChild: halt a running node, set a completed one back to IDLE."""
-    if node.status is not Status.INVALID:
-        node.stop(Status.INVALID)
 
 
 class Fresh:
@@ -67,31 +64,7 @@ class GoalReader:
 # -- controls -------------------------------------------------------------------------------
 
 
-class _Control(py_trees.composites.Composite):
-    """A Nav2 control node: its whole tick is its own."""
-
-    def _reset(self) -> None:
-        """Nav2's halt(): forget the node's progress."""
-
-    def terminate(self, new_status: Status) -> None:
-        if new_status is Status.INVALID and self.status is Status.RUNNING:
-            self._reset()
-
-    def _reset_children(self) -> None:
-        for child in self.children:
-            reset(child)
-
-    def _end(self, status: Status) -> Iterator[Behaviour]:
-        self._reset_children()
-        self.stop(status)
-        yield self
-
-    def _running(self) -> Iterator[Behaviour]:
-        self.status = Status.RUNNING
-        yield self
-
-
-class PipelineSequence(_Control):
+class PipelineSequence(ControlNode):
     """Ticks its children in order every tick; a child RUNNING stops the tick only when no later
     child has run yet, so earlier RUNNING children (a RateController) keep ticking with the one
     being worked on (FollowPath). A failure halts all and fails; all succeeding succeeds."""
@@ -119,7 +92,7 @@ class PipelineSequence(_Control):
         yield from self._end(Status.SUCCESS)
 
 
-class RecoveryNode(_Control):
+class RecoveryNode(ControlNode):
     """Two children: the action and its recovery. When the action fails, the recovery runs (in
     the same tick); when that succeeds, the action is tried again, ``retries`` times at most. A
     success of the action, or a failure of the recovery, ends it."""
@@ -149,19 +122,19 @@ class RecoveryNode(_Control):
                     return
                 if self.count >= self.retries:
                     break
-                reset(child)
+                halt(child)
                 self.index = 1
             else:
                 if status is Status.FAILURE:
                     break
-                reset(child)
+                halt(child)
                 self.count += 1
                 self.index = 0
         self._reset()
         yield from self._end(Status.FAILURE)
 
 
-class RoundRobin(_Control):
+class RoundRobin(ControlNode):
     """Each time it is ticked anew, the next child in turn: a success ends it (the next call goes
     on from the child after), a failure moves on to the next child in the same tick, and it fails
     when every child failed. Without ``wrap_around`` it also fails, instead of starting over at
@@ -198,7 +171,7 @@ class RoundRobin(_Control):
         yield from self._end(Status.FAILURE)
 
 
-class NonblockingSequence(_Control):
+class NonblockingSequence(ControlNode):
     """Ticks every child every tick, running ones or not: a failure halts all and fails; when all
     succeeded in the same tick it succeeds."""
 
