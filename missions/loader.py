@@ -1,4 +1,9 @@
-"""Load mission YAML keeping the file, line and column of every node, with its includes.
+"""Load a mission keeping the file, line and column of every node, with its includes.
+
+A mission file's format is found by its suffix in a registry (entry-point group
+``botstage.formats``): YAML (``.yaml``, ``.yml``, and any suffix no format claims) is built in;
+a plug-in set adds its own (BehaviorTree.CPP's set reads ``.xml``), so this module imports no
+other format's reader.
 
 `include:`d files are merged in (their trees, machines and keys) with their own positions;
 include cycles and missing files are located problems like any other.
@@ -15,8 +20,9 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from botstage.robots import limits
 from botstage.robots.located_yaml import (
@@ -30,11 +36,78 @@ from botstage.robots.located_yaml import (
     display_name,
     parse,
 )
+from botstage.robots.plugins import PluginProblem, discover
 
 INCLUDABLE = ("trees", "machines", "keys")  # what an included file may contribute
 LIBRARY_DIR = Path(__file__).resolve().parent / "lib"  # the built-in library of shared trees
+FORMAT_GROUP = "botstage.formats"
 
-__all__ = ["INCLUDABLE", "LIBRARY_DIR", "Loaded", "Location", "Locations", "Problem", "display_name", "load"]
+__all__ = [
+    "FORMAT_GROUP",
+    "INCLUDABLE",
+    "LIBRARY_DIR",
+    "YAML",
+    "Loaded",
+    "Location",
+    "Locations",
+    "MissionFormat",
+    "Problem",
+    "display_name",
+    "format_of",
+    "load",
+]
+
+
+class MissionFormat(Protocol):
+    """A mission file format: the suffixes it reads and how (problems collected, never raised)."""
+
+    name: str
+    suffixes: tuple[str, ...]
+
+    def load(self, path: Path, include_dirs: Iterable[str | Path] = ()) -> Loaded: ...
+
+
+class YamlFormat:
+    """botstage's own format: mission YAML with ``include:``s."""
+
+    name = "yaml"
+    suffixes = (".yaml", ".yml")
+
+    def load(self, path: Path, include_dirs: Iterable[str | Path] = ()) -> Loaded:
+        return _load_yaml(path, include_dirs)
+
+
+YAML = YamlFormat()
+
+
+def _not_a_format(value: object) -> str:
+    suffixes = getattr(value, "suffixes", None)
+    if (
+        isinstance(suffixes, tuple)
+        and all(isinstance(s, str) for s in suffixes)
+        and callable(getattr(value, "load", None))
+    ):
+        return ""
+    return "does not point to a mission format (an object with suffixes and load)"
+
+
+@cache
+def _plugin_formats() -> tuple[dict[str, MissionFormat], tuple[PluginProblem, ...]]:
+    """Formats of installed plug-ins by suffix, read once per process (only when a file is not YAML)."""
+    problems: list[PluginProblem] = []
+    found: dict[str, MissionFormat] = {}
+    for plugin in discover(FORMAT_GROUP, problems, what="format", problem_of=_not_a_format, name_of=lambda v: None):
+        for suffix in plugin.value.suffixes:
+            found.setdefault(suffix.lower(), plugin.value)
+    return found, tuple(problems)
+
+
+def format_of(path: str | Path) -> MissionFormat:
+    """The format that reads ``path``, by its suffix; YAML when no format claims the suffix."""
+    suffix = Path(path).suffix.lower()
+    if suffix in YAML.suffixes:
+        return YAML
+    return _plugin_formats()[0].get(suffix, YAML)
 
 
 @dataclass
@@ -65,12 +138,13 @@ def load(path: str | Path, include_dirs: Iterable[str | Path] = ()) -> Loaded:
     """Load a mission and everything it includes; problems are collected, never raised.
 
     ``include_dirs``: folders besides the mission's own tree and the built-in library that
-    includes may come from (``BOTSTAGE_INCLUDE_PATH`` adds more)."""
+    includes may come from (``BOTSTAGE_INCLUDE_PATH`` adds more). The file's format is found by
+    its suffix (``format_of``)."""
     path = Path(path)
-    if path.suffix.lower() == ".xml":  # a BehaviorTree.CPP v4 tree, read as the mission it describes
-        from botstage.behaviors.btcpp.to_spec import load_xml
+    return format_of(path).load(path, include_dirs)
 
-        return load_xml(path)
+
+def _load_yaml(path: Path, include_dirs: Iterable[str | Path]) -> Loaded:
     locations = Locations(root=Location(display_name(path), 1, 1))
     state = _Load(include_roots(path, include_dirs), [], [path], Budget())
     data = parse(path, state.problems, locations, budget=state.budget)

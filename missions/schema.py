@@ -108,6 +108,11 @@ class Mission(BaseModel):
         f"(at most {MAX_NAME_BYTES} bytes in UTF-8); defaults to the file name",
     )
     description: str = ""
+    nodes: str = Field(
+        default="botstage",
+        description="the node scope its trees are written in: botstage's kinds, or btcpp (BehaviorTree.CPP's "
+        "and Nav2's node IDs, as an XML file sees them; `botstage import` writes it)",
+    )
     robot: str | None = Field(default=None, description="a robot profile name or a path to a profile YAML")
     world: str | None = Field(default=None, description="the simulated world: a shipped map's name or a map YAML")
     start: str | list[float] | None = Field(

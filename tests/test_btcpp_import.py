@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 import yaml
-from botstage.behaviors.btcpp.to_spec import load_xml, loads_xml
+from botstage.behaviors.btcpp.xml_format import load_xml, loads_xml
 from botstage.missions.check import check
 from botstage.missions.cli import app
 from botstage.missions.runner import run
@@ -160,13 +160,13 @@ def test_import_writes_the_mission_yaml(tmp_path: Path) -> None:
     assert yaml.safe_load(out.read_text()) == {
         "name": "t",
         "robot": "peoplebot",
+        "nodes": "btcpp",
         "trees": {"T": {"AlwaysSuccess": {}}},
         "root": "T",
     }
     assert check(out).problems == []
 
 
-# -- botstage-nav2 (issue 22): Nav2's node set is installed; what is left is the navigator's goal --
 @pytest.mark.skipif(not NAV2.is_dir(), reason="../shared/nav2 is not here")
 def test_nav2_trees_need_only_the_goal_nav2s_navigator_writes() -> None:
     for path in sorted(NAV2.glob("navigate*.xml")):
@@ -174,8 +174,6 @@ def test_nav2_trees_need_only_the_goal_nav2s_navigator_writes() -> None:
             assert problem.message.startswith("blackboard key 'goal' is read here but nothing writes"), problem
             assert problem.location.line > 1
 
-
-# -- end botstage-nav2
 
 
 # -- scripts, pre/post conditions, includes, keyed ports, SubTree literals, TreeNodesModel ---------

@@ -23,7 +23,7 @@ from tests.scripted_nodes import LOG, A, B, C, Scripted, leaf, run
 
 @pytest.fixture
 def engine(make_engine: Any) -> Iterator[Any]:
-    kinds = NodeKinds.builtin()
+    kinds = NodeKinds.default("btcpp")  # BT.CPP's IDs are what an XML file's trees see
     kinds.register(Scripted)
     LOG.clear()
     yield make_engine(rate_hz=10, kinds=kinds)

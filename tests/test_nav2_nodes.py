@@ -65,7 +65,7 @@ def odometry() -> FakeOdometry:
 
 @pytest.fixture(scope="module")
 def kinds() -> NodeKinds:
-    kinds = NodeKinds.default()  # Nav2's set is a plug-in: installed, so on by default
+    kinds = NodeKinds.default("btcpp")  # Nav2's set is a plug-in of the XML scope: installed, so there
     kinds.register(Scripted)
     return kinds
 

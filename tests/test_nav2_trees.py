@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 import yaml
-from botstage.behaviors.btcpp.to_spec import load_xml, loads_xml
+from botstage.behaviors.btcpp.xml_format import load_xml, loads_xml
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
 from botstage.behaviors.nav2.models import check_models
@@ -46,7 +46,11 @@ def session(nav2: Path, tree: str, sim: NavSim) -> tuple[Navigator, Engine]:
     """Nav2's tree file, imported and built once, on the simulated robot."""
     loaded = load_xml(nav2 / tree)
     assert loaded.data is not None, [str(p) for p in loaded.problems]
-    engine = Engine(clock=sim.clock, interfaces={**sim.sim.devices, **sim.services.interfaces})
+    engine = Engine(
+        clock=sim.clock,
+        interfaces={**sim.sim.devices, **sim.services.interfaces},
+        kinds=NodeKinds.default(loaded.data["nodes"]),
+    )
     engine.set_root(engine.builder(trees=loaded.data["trees"]).named_tree(loaded.data["root"]))
     return Navigator(engine, sim.step), engine
 
@@ -101,7 +105,8 @@ def test_the_bench_yaml_is_nav2s_tree(nav2: Path) -> None:
     loaded = load_xml(nav2 / TO_POSE)
     assert loaded.data is not None
     native = yaml.safe_load(NAV2_YAML.read_text(encoding="utf-8"))
-    registry, kinds = Registry.default(), NodeKinds.default()
+    assert native["nodes"] == loaded.data["nodes"] == "btcpp"
+    registry, kinds = Registry.default(), NodeKinds.default("btcpp")
     imported = shape(loaded.data["trees"][loaded.data["root"]], registry, kinds)
     assert shape(native["trees"][native["root"]], registry, kinds) == imported
 

@@ -18,9 +18,7 @@ BUILTIN = {
     "sequence",
     "reactive_sequence",
     "selector",
-    "fallback",
     "reactive_selector",
-    "reactive_fallback",
     "parallel",
     "inverter",
     "force_success",
@@ -37,12 +35,6 @@ BUILTIN = {
     "condition",
     "subtree",
     "machine",
-    # BehaviorTree.CPP v4's built-in nodes, under their own IDs (behaviors/btcpp/nodes.py)
-    *("Sequence", "SequenceWithMemory", "ReactiveSequence", "Fallback", "ReactiveFallback", "Parallel"),
-    *("ParallelAll", "IfThenElse", "WhileDoElse", "Switch2", "Switch3", "Switch4", "Switch5", "Switch6"),
-    *("Inverter", "ForceSuccess", "ForceFailure", "KeepRunningUntilFailure", "RetryUntilSuccessful"),
-    *("Repeat", "RunOnce", "Timeout", "Delay", "AlwaysSuccess", "AlwaysFailure", "Sleep", "SetBlackboard"),
-    *("Script", "ScriptCondition", "Precondition", "UnsetBlackboard", "PrePostConditions"),  # scripts (issue 22)
 }
 
 
@@ -54,6 +46,9 @@ def statuses(engine: Any, spec: dict[str, Any], ticks: int) -> list[str]:
 def test_builtin_kinds_are_registered_like_plugins() -> None:
     kinds = NodeKinds.builtin()
     assert set(kinds) == BUILTIN
+    # BehaviorTree.CPP's names are aliases only: read as botstage's one kind, never listed
+    assert kinds.aliases == {"fallback": "selector", "reactive_fallback": "reactive_selector"}
+    assert kinds.get("fallback") is kinds.get("selector")
     assert {kinds.origin(name) for name in kinds} == {"builtin"}
     assert all(kinds.get(name).description for name in kinds)
 

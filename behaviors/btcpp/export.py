@@ -27,39 +27,33 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, get_args, get_origin
 
-from botstage.behaviors.btcpp.to_spec import RENAMED, btcpp_kinds, convert
+from botstage.behaviors.btcpp.vocabulary import (
+    ARGUMENT_PORTS,
+    COMPOSITES,
+    DECORATORS,
+    MACHINE_PREFIX,
+    MARKER,
+    MILLISECOND_PORTS,
+    OWN_SET,
+    RENAMED,
+    SCOPE,
+    SETTINGS,
+    SKILL_EXTRAS,
+    STATE,
+    STATE_MACHINE,
+    TOP_MACHINE_TREE,
+    TREE_KEYS,
+    input_value,
+    split_outside_quotes,
+    to_text,
+    typed_text,
+)
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, LeafKind, NodeKinds
 from botstage.robots.located_yaml import Loaded, Location, Problem
 from botstage.skills.base import plain_type, type_name
 from botstage.skills.registry import Registry
 
 SpecPath = tuple[str | int, ...]
-MARKER = "_botstage"  # on a BT.CPP built-in's tag: the botstage kind it was written from
-SETTINGS = "BotstageMission"  # the mission's settings besides its trees and machines
-TOP_MACHINE_TREE = "mission"  # the BehaviorTree that holds an inline top-level machine
-MACHINE_PREFIX = "machine:"  # BehaviorTree IDs of named machines
-STATE_MACHINE, STATE = "StateMachine", "State"
-SKILL_EXTRAS = ("success_on", "params")  # a skill node's options that are not ports: `_success_on`
-TREE_KEYS = ("trees", "machines", "machine", "root", "include")  # what is not a setting
-# the port a botstage decorator's argument is written to (plug-ins: "value")
-ARGUMENT_PORTS = {"retry": "times", "repeat": "times", "timeout": "seconds", "delay": "seconds"}
-ARGUMENT_PORTS |= {"while": "condition", "if": "condition"}
-# botstage composites with BT.CPP's behaviour: (kind, memory) -> BT.CPP ID
-COMPOSITES = {"sequence": "Sequence", "selector": "Fallback", "fallback": "Fallback"}
-COMPOSITES |= {"reactive_sequence": "ReactiveSequence", "reactive_selector": "ReactiveFallback"}
-COMPOSITES |= {"reactive_fallback": "ReactiveFallback"}
-# botstage decorators that build BT.CPP's behaviour: kind -> (BT.CPP ID, its count port or None)
-DECORATORS = {
-    "inverter": ("Inverter", None),
-    "force_success": ("ForceSuccess", None),
-    "force_failure": ("ForceFailure", None),
-    "keep_running_until_failure": ("KeepRunningUntilFailure", None),
-    "retry": ("RetryUntilSuccessful", "num_attempts"),
-    "repeat": ("Repeat", "num_cycles"),
-    "timeout": ("Timeout", "msec"),
-    "delay": ("Delay", "delay_msec"),
-}
-MILLISECOND_PORTS = frozenset({"msec", "delay_msec"})
 CPP_TYPES = {
     "float": "double",
     "int": "int",
@@ -80,76 +74,6 @@ class ExportError(Exception):
 
 
 # -- values as attribute text, and back ----------------------------------------------------------
-
-
-def to_text(value: Any) -> str:
-    """A value as a port's text: strings as they are, booleans as BT.CPP writes them, else JSON."""
-    if isinstance(value, str):
-        return value
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return json.dumps(value, ensure_ascii=False)
-
-
-def typed_text(value: Any, annotation: Any) -> str:
-    """An option's text that ``from_text`` reads back to the same value for this annotation."""
-    if plain_type(annotation) is str or not isinstance(value, str):
-        return to_text(value)
-    return value if from_text(value, annotation) == value else json.dumps(value, ensure_ascii=False)
-
-
-def from_text(text: str, annotation: Any = Any) -> Any:
-    """A port's text as the option's value: text for ``str``, else JSON where it parses (a plain
-    word like ``forever`` stays text)."""
-    if plain_type(annotation) is str:
-        return text
-    lowered = text.strip().lower()
-    if lowered in ("true", "false"):
-        return lowered == "true"
-    try:
-        return json.loads(text)
-    except ValueError:
-        return text
-
-
-def input_value(annotation: Any, text: str, exported: bool) -> Any:
-    """A skill input's text as its value: BT.CPP's reading (``to_spec.convert``), lists of words
-    split at ``;`` as BT.CPP splits a ``vector<string>``, and, in a file botstage wrote
-    (``exported``), JSON for an input of any type."""
-    if reads_beyond_btcpp(annotation, exported):
-        if plain_type(annotation) is Any:
-            return from_text(text)
-        return [part for part in text.split(";") if part]
-    return convert(annotation, text)
-
-
-def reads_beyond_btcpp(annotation: Any, exported: bool) -> bool:
-    """Is an input of this type read by ``input_value``'s own rules (not ``to_spec.convert``'s)?"""
-    plain = plain_type(annotation)
-    words = get_origin(plain) is list and [plain_type(a) for a in get_args(plain)] == [str]
-    return words or (plain is Any and exported)
-
-
-def split_outside_quotes(text: str, separator: str) -> list[str]:
-    """``text`` cut at each ``separator`` that is not inside '…' or "…" (conditions hold strings)."""
-    parts, start, quote, i = [], 0, "", 0
-    while i < len(text):
-        char = text[i]
-        if quote:
-            if char == "\\":
-                i += 1
-            elif char == quote:
-                quote = ""
-        elif char in "'\"":
-            quote = char
-        elif text.startswith(separator, i):
-            parts.append(text[start:i])
-            start = i + len(separator)
-            i = start
-            continue
-        i += 1
-    parts.append(text[start:])
-    return parts
 
 
 # -- one canonical spelling of each node ---------------------------------------------------------
@@ -255,9 +179,9 @@ class Exporter:
     def __init__(self, loaded: Loaded, registry: Registry | None = None, kinds: NodeKinds | None = None) -> None:
         self.loaded = loaded
         self.registry = registry or Registry.default()
-        self.kinds = kinds or NodeKinds.default()
-        # BT.CPP's nodes, and plug-in node sets (Nav2's), are written with their ports as they are
-        self.btcpp = set(btcpp_kinds(self.kinds)) | {k for k in self.kinds if self.kinds.origin(k) != "builtin"}
+        self.kinds = kinds or NodeKinds.default(SCOPE)
+        # the scope's node sets (BT.CPP's, Nav2's) and plug-in kinds are written with their ports as they are
+        self.native = {k for k in self.kinds if self.kinds.origin(k) != "builtin"}
         self.problems: list[Problem] = []
         self.models: dict[str, ET.Element] = {}  # node ID -> its TreeNodesModel entry
         self.data: dict[str, Any] = {}
@@ -373,7 +297,7 @@ class Exporter:
             element = self.subtree(spec, path)
         elif key == "machine":
             element = self.machine_node(spec, path)
-        elif key in self.btcpp:
+        elif key in self.native:
             element = self.btcpp_node(key, spec, path)
         elif key in COMPOSITES and set(spec) <= {key, "name"}:
             element = self.children(ET.Element(COMPOSITES[key], {MARKER: key}), spec[key], path + (key,))
@@ -434,7 +358,7 @@ class Exporter:
         for port, value in ports.items():
             written = {(b, a): c for (b, c), a in RENAMED.items()}.get((key, port), port)
             element.set(self._port_name(written, path + (port,)), to_text(value))
-        if self.kinds.origin(key) != "builtin":
+        if self.kinds.node_set(key) != OWN_SET:  # BT.CPP knows its own nodes; the rest are declared
             self._model_kind(key, kind, None)
         if isinstance(kind, CompositeKind):
             return self.children(element, spec[key], path + (key,))

@@ -3,7 +3,7 @@
 ``_success_on`` and ``_params``, ``<StateMachine>``/``<State>`` machines, named machines
 (``<BehaviorTree ID="machine:NAME">``) and the ``<BotstageMission>`` settings.
 
-``to_spec`` builds its converter here (one hook); everything else it reads as before.
+``botstage.behaviors.btcpp.xml_format`` reads every file with this converter.
 """
 
 from __future__ import annotations
@@ -14,13 +14,16 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from botstage.behaviors.btcpp.export import (
+from botstage.behaviors.btcpp.to_spec import Converter, SpecPath, _Tree
+from botstage.behaviors.btcpp.vocabulary import (
     ARGUMENT_PORTS,
     COMPOSITES,
     DECORATORS,
+    IGNORED,
     MACHINE_PREFIX,
     MARKER,
     MILLISECOND_PORTS,
+    NODE_MODELS,
     SETTINGS,
     SKILL_EXTRAS,
     STATE,
@@ -31,7 +34,6 @@ from botstage.behaviors.btcpp.export import (
     reads_beyond_btcpp,
     split_outside_quotes,
 )
-from botstage.behaviors.btcpp.to_spec import IGNORED, NODE_MODELS, Converter, SpecPath, _Tree
 from botstage.behaviors.btcpp.xml_reader import Element
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind
 from botstage.behaviors.suggest import did_you_mean
@@ -114,7 +116,7 @@ class ExportedConverter(Converter):
             if "_success_on" in element.attrs:
                 node["success_on"] = _names(element.attrs["_success_on"])
             return self._named(element, node)
-        own = node_id in self.kinds and node_id not in self.btcpp and node_id not in OWN_LEAVES
+        own = node_id in self.kinds and node_id not in self.native and node_id not in OWN_LEAVES
         if own and node_id not in self.registry:
             self.locations.by_path[path] = element.where
             return self._named(element, self.custom(element, node_id, path, tree))

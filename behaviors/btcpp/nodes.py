@@ -1,4 +1,5 @@
-"""BehaviorTree.CPP v4's built-in node set, registered as botstage node kinds under BT.CPP's IDs.
+"""BehaviorTree.CPP v4's built-in node set, registered as botstage node kinds under BT.CPP's IDs,
+in the scope an XML file sees (``NODE_SET``, the entry point ``btcpp``).
 
 Ports are options beside the kind, named as in BT.CPP (``{RetryUntilSuccessful: NODE,
 num_attempts: 3}``, ``{Parallel: [...], success_count: 2}``); leaves take their ports as their
@@ -22,16 +23,19 @@ from collections.abc import Mapping
 from typing import Annotated, Any, ClassVar, Literal
 
 import py_trees
+from py_trees.common import Status
+from pydantic import Field, PlainValidator, WithJsonSchema, create_model
+
 from botstage.behaviors.btcpp import behaviours as bt
 from botstage.behaviors.btcpp.script import ScriptError, compile_script
+from botstage.behaviors.btcpp.vocabulary import SCOPE
 from botstage.behaviors.decorators import ClockTimeout
 from botstage.behaviors.kinds import decorators as botstage
 from botstage.behaviors.kinds.base import CompositeKind, DecoratorKind, Described, KindOptions, LeafKind, NodeBuild
+from botstage.behaviors.kinds.registry import NodeSet
 from botstage.behaviors.skill_behaviour import KeyRef
 from botstage.behaviors.skill_binding import parse_binding
 from botstage.behaviors.suggest import did_you_mean
-from py_trees.common import Status
-from pydantic import Field, PlainValidator, WithJsonSchema, create_model
 
 
 class LiteralType:
@@ -640,3 +644,12 @@ __all__ = [
     "UnsetBlackboard",
     "WhileDoElse",
 ]
+
+# registered through the entry point `btcpp` of `botstage.nodes`, as any third party's set is;
+# only an XML file's scope sees these IDs, so a YAML mission never meets `Sequence` beside `sequence`
+NODE_SET = NodeSet(
+    "btcpp",
+    SCOPE,
+    tuple(globals()[name] for name in __all__),
+    "BehaviorTree.CPP v4's built-in nodes, under their BT.CPP IDs",
+)

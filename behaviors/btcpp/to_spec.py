@@ -32,23 +32,20 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, get_args, get_origin
 
 from botstage.behaviors.btcpp.script import ScriptError, compile_script
-from botstage.behaviors.btcpp.xml_reader import Element, parse, parse_bytes
+from botstage.behaviors.btcpp.vocabulary import _BAD, IGNORED, NODE_MODELS, RENAMED, SCOPE, _bool, convert
+from botstage.behaviors.btcpp.xml_reader import Element, parse
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
 from botstage.behaviors.suggest import did_you_mean
 from botstage.robots import limits
-from botstage.robots.located_yaml import Loaded, Location, Locations, Problem, display_name
+from botstage.robots.located_yaml import Location, Locations, Problem, display_name
 from botstage.skills.base import plain_type
 from botstage.skills.registry import Registry
 
 SpecPath = tuple[str | int, ...]
-NODE_MODELS = ("Action", "Condition", "Control", "Decorator")  # <Action ID="X"/>, BT.CPP v3's long form
-# attributes BT.CPP and Groot2 write on any node that are not ports
-IGNORED = frozenset({"_uid", "_fullpath", "_description"})
 CONDITIONS = ("_skipIf", "_failureIf", "_successIf", "_while", "_onSuccess", "_onFailure", "_onHalted", "_post")
 WRAPPER = "PrePostConditions"  # the kind that carries a node's CONDITIONS (botstage.behaviors.btcpp.nodes)
 KEY_PORTS = frozenset({("SetBlackboard", "output_key"), ("UnsetBlackboard", "key")})  # text is a key's name
 SCRIPT_PORTS = frozenset({("Script", "code"), ("ScriptCondition", "code"), ("Precondition", "if")})
-RENAMED = {("Precondition", "if"): "if_"}  # `if` is botstage's guard kind: a node names exactly one kind
 # TreeNodesModel port types (C++ type names) and the Python type their literals are read as
 MODEL_TYPES: dict[str, Any] = {
     **dict.fromkeys(["int", "unsigned", "unsigned int", "long", "int8_t", "int16_t", "int32_t", "int64_t"], int),
@@ -57,11 +54,6 @@ MODEL_TYPES: dict[str, Any] = {
     "bool": bool,
 }
 _REF = re.compile(r"^\{(@?)([^{}]*)\}$")
-
-
-def btcpp_kinds(kinds: NodeKinds) -> list[str]:
-    """The kinds of BT.CPP's built-in node set (registered from ``botstage.behaviors.btcpp.nodes``)."""
-    return [name for name in kinds if type(kinds.get(name)).__module__ == "botstage.behaviors.btcpp.nodes"]
 
 
 @dataclass
@@ -85,11 +77,9 @@ class Converter:
     def __init__(self, name: str, registry: Registry | None = None, kinds: NodeKinds | None = None) -> None:
         self.name = name
         self.registry = registry or Registry.default()
-        self.kinds = kinds or NodeKinds.default()
-        self.btcpp = set(btcpp_kinds(self.kinds))
-        # -- botstage-nav2 (issue 22): plug-in node sets (Nav2's) are usable from XML like BT.CPP's own
-        self.btcpp |= {name for name in self.kinds if self.kinds.origin(name) != "builtin"}
-        # -- end botstage-nav2
+        self.kinds = kinds or NodeKinds.default(SCOPE)
+        # the scope's node sets (BT.CPP's, Nav2's) and plug-in kinds: their ports are attributes as they are
+        self.native = {name for name in self.kinds if self.kinds.origin(name) != "builtin"}
         self.problems: list[Problem] = []
         self.locations = Locations(root=Location(name, 1, 1))
         self.elements: dict[str, Element] = {}
@@ -121,11 +111,10 @@ class Converter:
             )
         elif main is None and self.elements:
             main = next(iter(self.elements))
-        # -- botstage-nav2 (issue 22): a file of only a TreeNodesModel (nav2_tree_nodes.xml) is a
-        # library of node models, not a tree: it imports with no trees (behaviors/nav2/models.py checks it)
+        # a file of only a TreeNodesModel (a node set's model file) is a library of node models,
+        # not a tree: it imports with no trees
         if not self.elements and not self.modelled:
             self.problem(root.where, "no <BehaviorTree> in the file")
-        # -- end botstage-nav2
         for tree_id in self.elements:
             self.tree(tree_id, self.elements[tree_id].where)
         trees = {tree_id: self.trees[tree_id].spec for tree_id in self.elements if self.trees[tree_id].spec is not None}
@@ -279,7 +268,7 @@ class Converter:
         name = attrs.pop("name", None)
         if name and "/" not in name:
             spec["name"] = name
-        if node_id in self.btcpp:
+        if node_id in self.native:
             built = self.builtin(element, node_id, attrs, path, tree)
         elif node_id in self.registry:
             built = self.skill(element, node_id, attrs, path, tree)
@@ -302,7 +291,7 @@ class Converter:
 
     def unknown(self, element: Element, node_id: str, path: SpecPath, tree: _Tree) -> None:
         """Report an unknown ID, and go on below it: every unknown node of the file is reported."""
-        known = sorted({*self.btcpp, *self.registry, "SubTree"})
+        known = sorted({*self.native, *self.registry, "SubTree"})
         declared = " (the TreeNodesModel declares it, but botstage has no node of that ID)" * (node_id in self.modelled)
         close = difflib.get_close_matches(node_id, known, n=1, cutoff=0.75)
         hint = f"did you mean {close[0]!r}?" if close else "known: `botstage nodes` and `botstage skills`"
@@ -506,13 +495,6 @@ class Converter:
         return spec
 
 
-class _Bad:
-    """A value that could not be converted (its problem is reported)."""
-
-
-_BAD: Any = _Bad()
-
-
 def _metadata(tp: Any) -> tuple[Any, ...]:
     return tuple(get_args(tp)[1:]) if get_origin(tp) is Annotated else ()
 
@@ -548,12 +530,6 @@ def takes_text(tp: Any) -> bool:
     return any(m is str or m is Any or get_origin(m) is Literal for m in _members(tp))
 
 
-def _bool(text: str | None) -> bool | None:
-    """BT.CPP's convertFromString<bool>."""
-    lowered = (text or "").strip().lower()
-    return {"true": True, "1": True, "false": False, "0": False}.get(lowered)
-
-
 def _identifier(text: str) -> str:
     cleaned = re.sub(r"\W", "_", text)
     return cleaned if cleaned[:1].isalpha() else "t" + cleaned
@@ -562,66 +538,3 @@ def _identifier(text: str) -> str:
 def _type_name(tp: Any) -> str:
     tp = plain_type(tp)
     return getattr(tp, "__name__", str(tp))
-
-
-def convert(tp: Any, text: str) -> Any:
-    """An attribute's text as a value of the port's type, as BT.CPP's convertFromString reads it:
-    numbers, ``true``/``false``, and lists of numbers separated by ``;``. Anything else stays text."""
-    plain = plain_type(tp)
-    text = text.strip() if plain is not str else text
-    try:
-        if plain is bool:
-            value = _bool(text)
-            return _BAD if value is None else value
-        if plain is int:
-            return int(text)
-        if plain is float:
-            return float(text)
-        origin = getattr(plain, "__origin__", None)
-        args = getattr(plain, "__args__", ())
-        if origin in (list, tuple) and args and all(plain_type(a) in (int, float) for a in args if a is not Ellipsis):
-            numbers = [float(part) for part in text.split(";") if part.strip()]
-            return numbers if origin is list else tuple(numbers)
-    except ValueError:
-        return _BAD
-    return text
-
-
-def load_xml(path: str | Path, registry: Registry | None = None, kinds: NodeKinds | None = None) -> Loaded:
-    """A BT.CPP XML file as a loaded mission (data, locations, problems); never raises for bad input."""
-    path = Path(path)
-    name = display_name(path)
-    problems: list[Problem] = []
-    root = parse(path, problems)
-    return _loaded(root, path, name, problems, registry, kinds)
-
-
-def loads_xml(
-    text: str, name: str = "<xml>", registry: Registry | None = None, kinds: NodeKinds | None = None
-) -> Loaded:
-    """XML text as a loaded mission (for tests and tools)."""
-    problems: list[Problem] = []
-    root = parse_bytes(text.encode(), name, problems)
-    return _loaded(root, Path(name), name, problems, registry, kinds)
-
-
-def _loaded(
-    root: Element | None,
-    path: Path,
-    name: str,
-    problems: list[Problem],
-    registry: Registry | None,
-    kinds: NodeKinds | None,
-) -> Loaded:
-    # -- botstage-export (issue 22): the converter also reads what behaviors/btcpp/export.py writes
-    from botstage.behaviors.btcpp.machines import ExportedConverter
-
-    converter = ExportedConverter(name, registry, kinds)
-    # -- end botstage-export
-    data = None
-    if root is not None:
-        data = converter.document(root, path)
-    problems.extend(converter.problems)
-    if data is not None:
-        data = {"name": path.stem, **data}
-    return Loaded(None if problems else data, converter.locations, problems, [path, *converter.files])

@@ -91,6 +91,8 @@ class NodeKind:
     """One kind of tree node. Subclass CompositeKind, DecoratorKind or LeafKind."""
 
     name: ClassVar[str] = ""
+    # other spellings still read as this kind but never listed: one concept, one listed name
+    aliases: ClassVar[tuple[str, ...]] = ()
     description: ClassVar[str] = ""
     shape: ClassVar[str] = "decorator"
     Options: ClassVar[type[KindOptions]] = NoOptions

@@ -5,9 +5,10 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import py_trees
+from pydantic import Field
+
 from botstage.behaviors.kinds.base import CompositeKind, KindOptions, NodeBuild
 from botstage.behaviors.suggest import did_you_mean
-from pydantic import Field
 
 PARALLEL_POLICIES = ("success_on_all", "success_on_one", "success_on_selected")
 
@@ -45,26 +46,23 @@ class ReactiveSequence(Sequence):
 
 
 class Selector(Sequence):
+    """py_trees' name is the one listed; ``fallback`` (BehaviorTree.CPP's word) still reads as it,
+    as an alias only, because the Python API's ``Fallback`` and missions written with it use it."""
+
     name = "selector"
-    description = "try the children in order until one succeeds"
+    aliases = ("fallback",)
+    description = "try the children in order until one succeeds (a fallback)"
     shape = "selector"
     behaviour = py_trees.composites.Selector
 
 
-class Fallback(Selector):
-    name = "fallback"
-    description = "a selector, under BehaviorTree.CPP's name"
-
-
 class ReactiveSelector(Selector):
+    """``reactive_fallback`` is an alias only, as ``fallback`` is for ``selector``."""
+
     name = "reactive_selector"
+    aliases = ("reactive_fallback",)
     description = "a selector that re-tries higher-priority children every tick, halting a lower one"
     memory_default = False
-
-
-class ReactiveFallback(ReactiveSelector):
-    name = "reactive_fallback"
-    description = "a reactive selector, under BehaviorTree.CPP's name"
 
 
 class ParallelOptions(KindOptions):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from botstage.behaviors.btcpp.vocabulary import SCOPE
 from botstage.behaviors.btcpp.xml_reader import Element, parse
 from botstage.behaviors.kinds import NodeKinds
 from botstage.robots.located_yaml import Location, Problem
@@ -69,7 +70,7 @@ def _kind_ports(kind: Any) -> dict[str, tuple[str, Any]]:
 def check_models(path: Path, registry: Registry | None = None, kinds: NodeKinds | None = None) -> ModelCheck:
     """Compare every node the file's TreeNodesModel declares with botstage's node of that ID."""
     registry = registry or Registry.default()
-    kinds = kinds or NodeKinds.default()
+    kinds = kinds or NodeKinds.default(SCOPE)
     result = ModelCheck()
     root = parse(path, result.problems)
     models: list[Element] = [

@@ -17,12 +17,15 @@ from collections.abc import Callable, Mapping
 from typing import Annotated, Any, ClassVar
 
 import py_trees
+from pydantic import Field
+
+from botstage.behaviors.btcpp.vocabulary import SCOPE
 from botstage.behaviors.kinds.base import CompositeKind, DecoratorKind, KindOptions, LeafKind, NodeBuild
+from botstage.behaviors.kinds.registry import NodeSet
 from botstage.behaviors.nav2 import behaviours as nav2
 from botstage.behaviors.skill_behaviour import KeyRef
 from botstage.behaviors.skill_binding import parse_binding
 from botstage.behaviors.suggest import did_you_mean
-from pydantic import Field
 
 Positive = Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]
 NonNegative = Annotated[float, Field(ge=0, le=1e6, allow_inf_nan=False)]
@@ -408,3 +411,9 @@ __all__ = [
     "SpeedController",
     "TimeExpired",
 ]
+
+# the entry point `nav2` of `botstage.nodes`: Nav2's nodes extend BT.CPP's factory, so they live in
+# its scope (what an XML file sees), as upstream Nav2 registers them into BT.CPP's factory
+NODE_SET = NodeSet(
+    "nav2", SCOPE, tuple(globals()[name] for name in __all__), "Nav2's control, decorator and condition nodes"
+)

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import typer
+
 from botstage.missions.cli.common import _fail, _stderr, console, input_file, os_problem, output_file
 
 
@@ -21,7 +22,7 @@ def import_(
     world: str | None = typer.Option(None, help="the world (map) the mission names (default: none, fill it in)"),
 ) -> None:
     """Write the mission a BehaviorTree.CPP v4 XML file describes; errors as file:line:col, exit 1."""
-    from botstage.behaviors.btcpp.to_spec import load_xml
+    from botstage.behaviors.btcpp.xml_format import load_xml
     from botstage.missions.api.mission import dump_yaml
 
     loaded = load_xml(tree)
@@ -38,9 +39,6 @@ def import_(
     except OSError as exc:
         raise _fail(f"error: {os_problem(exc)}") from None
     console.print(f"wrote {output}", highlight=False, soft_wrap=True)
-
-
-# -- initial blackboard values (issue 22): `run --set goal=exhibit_a`, so Nav2's unmodified XML runs --
 
 
 def blackboard_values(assignments: list[str]) -> dict[str, Any]:
@@ -60,9 +58,6 @@ def blackboard_values(assignments: list[str]) -> dict[str, Any]:
     return values
 
 
-# -- end initial blackboard values
-
-
 def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | None = None) -> Callable[..., Any]:
     """How `run` runs a mission file: as it is, or, with ``--robot``/``--world`` (a tree file
     names neither) or ``--set`` values, as a mission with them set: checked first (problems at
@@ -73,8 +68,8 @@ def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | No
         return run
 
     from botstage.missions.api.mission import Mission
+    from botstage.robots.gridmap import known_maps, map_path
     from botstage.robots.profile import known_profiles, profile_path
-    from botstage.robots.sim.backend import known_maps, map_path
 
     # found from the working directory, as paths on a command line are; a bad one is a usage error
     for option, value, find, shipped, noun in (
@@ -91,7 +86,7 @@ def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | No
         if world is not None:
             mission.world = str(map_path(world, Path.cwd()) if world not in known_maps() else world)
         if values:
-            mission.blackboard = {**mission.blackboard, **values}  # --set (issue 22)
+            mission.blackboard = {**mission.blackboard, **values}  # --set
         return mission.run(**options)
 
     return run_placed

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
 from botstage.robots.clock import Clock
 from botstage.robots.gridmap import FREE, GridMap
 from botstage.robots.interfaces import LaserScan, Pose2D, SonarReading
@@ -325,12 +326,10 @@ class NavStack:
         """Forget every obstacle seen (the `clear_costmap` recovery)."""
         self._seen_at[:] = -np.inf
 
-    # -- botstage-nav2 (issue 22): Nav2's ClearCostmapExceptRegion, AroundRobot, AroundPose ---
     def forget(self, cells: np.ndarray) -> None:
-        """Forget what was seen in ``cells`` (a mask of the map's shape)."""
+        """Forget what was seen in ``cells`` (a mask of the map's shape): clearing part of the
+        obstacle layer, around the robot, a pose or outside a region."""
         self._seen_at[cells] = -np.inf
-
-    # -- end botstage-nav2 ------------------------------------------------------------------
 
     def seen(self) -> np.ndarray:
         """Cells that hold an obstacle seen within the memory."""
