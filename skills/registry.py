@@ -14,6 +14,7 @@ from __future__ import annotations
 import difflib
 import importlib
 from collections.abc import Iterable, Iterator
+from importlib.metadata import entry_points
 
 from botstage.robots.plugins import PluginProblem, discover, missing_extra
 from botstage.skills.base import Skill
@@ -100,6 +101,20 @@ class Registry:
                     and value.__module__ == module_name
                 ):
                     registry.register(value, origin="builtin")
+        return registry
+
+    @classmethod
+    def shipped(cls) -> Registry:
+        """The skills a YAML mission has from botstage: the core's and those of its plug-in sets
+        behind a pip extra that are installed (speech's ``listen``, chat's ``converse``), as the
+        shipped mission schema lists them. Third parties' plug-ins are left out, and so are Nav2's
+        leaves, which belong to the Nav2 node set that XML trees use."""
+        registry = cls.builtin()
+        behind_extras = entry_points(group=ENTRY_POINT_GROUP)
+        own = {ep.name for ep in behind_extras if ep.extras and ep.value.startswith("botstage.")}
+        for plugin in discover(ENTRY_POINT_GROUP, [], what="skill", problem_of=_not_a_skill, name_of=_name):
+            if plugin.origin == "plugin botstage" and plugin.name in own:
+                plugin.register(lambda value, origin: registry.register(value, origin=origin), registry.problems)
         return registry
 
     def register(self, cls: type[Skill], *, origin: str = "", replace: bool = False) -> None:

@@ -19,7 +19,7 @@ def schema(
     from botstage.skills.registry import Registry
 
     if builtin:
-        schema = json_schema(Registry.builtin(), NodeKinds.builtin())
+        schema = json_schema(Registry.shipped(), NodeKinds.builtin())
     else:
         schema = json_schema(Registry.default(), NodeKinds.default())
     sys.stdout.write(json.dumps(schema, indent=2) + "\n")
