@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import py_trees
+
 from botstage.behaviors.trace import Trace, jsonable
 from botstage.skills.base import MISSING, check_type, type_name
 

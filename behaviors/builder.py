@@ -25,6 +25,8 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import py_trees
+from pydantic import ValidationError
+
 from botstage.behaviors.blackboard import BlackboardError, normalise_key
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeBuild, NodeKind, NodeKinds
 from botstage.behaviors.kinds.base import argument_adapter
@@ -35,7 +37,6 @@ from botstage.behaviors.skill_binding import SkillBinder, success_outcomes
 from botstage.behaviors.suggest import did_you_mean
 from botstage.robots.limits import MAX_NODE_DEPTH
 from botstage.skills.expression import Expression, ExpressionError, compile_expression, key_of
-from pydantic import ValidationError
 
 __all__ = ["Builder", "KeyUsage", "Scope", "SpecError", "SpecPath", "SpecProblem", "remap_condition", "remap_key"]
 

@@ -11,9 +11,10 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import py_trees
+from py_trees.common import Status
+
 from botstage.behaviors.blackboard import BlackboardError
 from botstage.skills.expression import EvaluationError, Expression
-from py_trees.common import Status
 
 if TYPE_CHECKING:
     from botstage.behaviors.runtime import Runtime

@@ -12,6 +12,8 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 import py_trees
+from py_trees.common import Status
+
 from botstage.behaviors.blackboard import Blackboard
 from botstage.behaviors.builder import Builder
 from botstage.behaviors.kinds import NodeKinds
@@ -20,7 +22,6 @@ from botstage.robots.clock import Clock, SimClock
 from botstage.skills.base import Outcome
 from botstage.skills.registry import Registry
 from botstage.skills.workers import Workers
-from py_trees.common import Status
 
 
 class Engine:

@@ -19,11 +19,12 @@ from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+from py_trees.common import Status
+from transitions.extensions.nesting import HierarchicalMachine, NestedState
+
 from botstage.behaviors.blackboard import BlackboardError
 from botstage.skills.base import Outcome
 from botstage.skills.expression import EvaluationError, Expression, compile_expression
-from py_trees.common import Status
-from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
 if TYPE_CHECKING:
     from botstage.behaviors.runtime import Runtime

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
+
 from botstage.behaviors.kinds import Described
 from botstage.behaviors.kinds.leaves import describe_skill
 from botstage.behaviors.machine import MachineBehaviour, MachinePlan

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     import py_trees
+
     from botstage.behaviors.blackboard import Blackboard
     from botstage.behaviors.trace import Trace
     from botstage.robots.clock import Clock

@@ -18,12 +18,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+from py_trees.common import Status
+
 from botstage.behaviors.blackboard import BlackboardError
 from botstage.behaviors.trace import jsonable
 from botstage.skills.base import FAILURE, Outcome, Skill, SkillContext, SkillLogger
 from botstage.skills.execution import SkillExecution
 from botstage.skills.expression import ExpressionError, compile_expression
-from py_trees.common import Status
 
 if TYPE_CHECKING:
     from botstage.behaviors.runtime import Runtime

@@ -7,11 +7,12 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
+from pydantic import ValidationError
+
 from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
 from botstage.behaviors.suggest import did_you_mean
 from botstage.skills.base import MISSING, Skill, check_type
 from botstage.skills.registry import UnknownSkillError
-from pydantic import ValidationError
 
 if TYPE_CHECKING:
     from botstage.behaviors.builder import Builder, Scope, SpecPath

@@ -26,12 +26,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
 from botstage.missions.check import Checked, check
 from botstage.robots.interfaces import INTERFACES
 from botstage.robots.located_yaml import Loaded, Location, Problem, load_document
 from botstage.robots.profile import Profile, load_profile, profile_path
 from botstage.skills.registry import Registry, suggest
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")  # a ROS 2 node name (rcl's rule)
 ENDPOINT = re.compile(r"(tcp|udp|tls|quic)/(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):\d{1,5}\Z")

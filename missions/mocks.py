@@ -13,8 +13,9 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
-from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
 
 # Durations and write times are compared to the microsecond, as the trace records times: a call
 # recorded as lasting 0.714286 s replays for exactly as many ticks, whatever the tick rate.

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.missions.scenario import Result, Scenario, load_scenario
 from botstage.missions.scenario_suite import run_in_folder
 

@@ -19,11 +19,12 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
 from botstage.behaviors.blackboard import BlackboardError, normalise_key
 from botstage.missions.steering import ESTOP, TELEOP_ENDED, TeleopStretch, read_teleop_note
 from botstage.skills.base import MISSING, Skill, check_type
 from botstage.skills.registry import Registry
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
 # Built-in skills that only read and write the blackboard and read the clock: they run for real in
 # a replay, unless the recorded run was a scenario that mocked them.

@@ -177,8 +177,8 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    from botstage.robots.gridmap import FREE, OCCUPIED, load
-    from botstage.robots.gridmap import map_path
+
+    from botstage.robots.gridmap import FREE, OCCUPIED, load, map_path
 
     found = map_path(mission.world, checked.path.parent)
     assert found is not None

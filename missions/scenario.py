@@ -49,6 +49,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
 from botstage.behaviors.blackboard import MissingKeyError
 from botstage.behaviors.suggest import did_you_mean
 from botstage.missions.loader import Loaded, Location, Problem, load
@@ -63,7 +65,6 @@ from botstage.missions.steering import drive_one_step, stop_everything
 from botstage.skills.base import Skill
 from botstage.skills.expression import EvaluationError, compile_expression
 from botstage.skills.registry import Registry
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 __all__ = [
     "Call",

@@ -12,11 +12,12 @@ import re
 import unicodedata
 from typing import Annotated, Any
 
+from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator
+
 from botstage.behaviors.kinds import NodeKinds
 from botstage.behaviors.kinds.base import CONDITION_SCHEMA, MACHINE_REF, NODE_REF, merge_property
 from botstage.robots.limits import MAX_NAME_BYTES, MAX_SECONDS
 from botstage.skills.registry import Registry
-from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator
 
 SCHEMA_ID = "https://botstage.dev/schema/mission.json"
 # every model refuses NaN and infinities: `until: .nan` would end a run at once, `time: .inf` never

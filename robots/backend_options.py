@@ -14,10 +14,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import yaml
+from pydantic import ValidationError
+
 from botstage.robots.backend import BackendError, BackendKind, BackendOptions
 from botstage.robots.located_yaml import Location, Locations, Problem
 from botstage.robots.profile import Profile
-from pydantic import ValidationError
 
 
 @dataclass(frozen=True)

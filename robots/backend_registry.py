@@ -20,9 +20,7 @@ if TYPE_CHECKING:
     from botstage.robots.backend_options import OptionSources
     from botstage.robots.located_yaml import Locations
 
-BUILTIN = (
-    "botstage.robots.sim.kind:SimKind",
-)
+BUILTIN = ("botstage.robots.sim.kind:SimKind",)
 DEFAULT = "sim"
 
 

@@ -28,8 +28,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from botstage.robots.interfaces import Pose2D, Twist2D
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from botstage.robots.interfaces import Pose2D, Twist2D
 
 SKILL_NAME = r"^[A-Za-z][A-Za-z0-9]{0,15}$"  # OpenCat's skill names: letters and digits
 

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+
 from botstage.robots.limits import MAX_IMAGE_BYTES
 from botstage.robots.located_yaml import FileRefused, NotText, YamlProblem, find_yaml, load_data, read_bytes
 

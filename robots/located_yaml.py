@@ -22,9 +22,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from botstage.robots import limits
 from yaml.constructor import SafeConstructor
 from yaml.resolver import Resolver
+
+from botstage.robots import limits
 
 Path_ = tuple[str | int, ...]
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
 from botstage.robots.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap, save
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import math
 
-from botstage.robots.gridmap import GridMap, MapError
+from botstage.robots.gridmap import GridMap, MapError, map_path
 from botstage.robots.gridmap import load as load_map
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.gridmap import map_path
 
 
 class PlaceError(Exception):

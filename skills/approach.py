@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from botstage.skills.base import In, Outcome, Skill, SkillContext, SkillRun
 from botstage.skills.nav.navigator import OUTCOMES, NavParams, drive_to
 from botstage.skills.navigate import CANCEL, NAV_OUTPUTS, TIMEOUT, cancel_condition, nav_outcome, nav_stack

@@ -18,12 +18,13 @@ from functools import cache
 from types import MappingProxyType
 from typing import Annotated, Any, ClassVar, Literal, NamedTuple, Protocol, get_args, get_origin
 
+from pydantic import BaseModel, ConfigDict, PydanticUserError, TypeAdapter, ValidationError
+
 from botstage.robots.clock import Clock
 
 # port types for times: In(Seconds) refuses negatives, NaN, infinities and more than MAX_SECONDS
 from botstage.robots.limits import PositiveSeconds as PositiveSeconds
 from botstage.robots.limits import Seconds as Seconds
-from pydantic import BaseModel, ConfigDict, PydanticUserError, TypeAdapter, ValidationError
 
 SUCCESS = "success"
 FAILURE = "failure"

@@ -23,13 +23,14 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict, Field
+
 from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from botstage.skills.chat.cache import LoadedBrain, shared_brain
 from botstage.skills.chat.chatbot import Chatbot
 from botstage.skills.chat.kernel import calendar
 from botstage.skills.chat.persona import aiml_files
 from botstage.skills.chat.routing import route
-from pydantic import BaseModel, ConfigDict, Field
 
 _log = logging.getLogger("botstage.skills.converse")
 CUE = "CUE "  # Maya's lines are categories no visitor says: CUE GREETING, CUE COMPLIMENT...

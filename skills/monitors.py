@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from botstage.skills.base import In, Outcome, Seconds, Skill, SkillContext, SkillRun
 from botstage.skills.nav.stack import sonar_points
 

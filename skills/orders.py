@@ -13,9 +13,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict, Field
+
 from botstage.skills.base import In, Out, Outcome, Seconds, Skill, SkillContext, SkillRun
 from botstage.skills.delivery.inbox import Order, OrderError, parse_order
-from pydantic import BaseModel, ConfigDict, Field
 
 # Times are products of tick counts and periods; compare with a tolerance far below one tick.
 _EPSILON = 1e-9

@@ -18,9 +18,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
 from botstage.skills.files import write_atomically
-from pydantic import BaseModel, ConfigDict, Field
 
 
 class PhotoParams(BaseModel):

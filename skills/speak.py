@@ -11,10 +11,11 @@ from __future__ import annotations
 
 from typing import Literal
 
+from pydantic import BaseModel, ConfigDict, Field
+
 from botstage.robots.interfaces import AudioSpeaker
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
 from botstage.skills.tts import MAYA_VOICE, Speech, SpeechError, espeak_ng, synthesise
-from pydantic import BaseModel, ConfigDict, Field
 
 
 class SpeakParams(BaseModel):

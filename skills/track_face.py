@@ -33,9 +33,10 @@ from __future__ import annotations
 import math
 from typing import Any, Literal
 
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
 from botstage.skills.base import In, Out, Outcome, PositiveSeconds, Seconds, Skill, SkillContext, SkillRun
 from botstage.skills.perception.face_tracking import FaceDetector, PanController
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 _EPSILON = 1e-9
 

@@ -8,11 +8,12 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, settings
+
 from botstage.behaviors.engine import Engine
 from botstage.robots.clock import SimClock
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
 from botstage.skills.registry import Registry
-from hypothesis import HealthCheck, settings
 
 # Property tests judge what is computed, never how long it took: a loaded CI machine (two cores,
 # two workers) made a 200 ms example deadline fail a correct test.

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+
 from botstage.missions.monitor.control import Control
 from botstage.missions.monitor.hub import Hub
 from botstage.missions.monitor.observer import MonitorObserver

@@ -8,11 +8,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from playwright.sync_api import Page, sync_playwright
+
 from botstage.missions.monitor.replay import RecordedRun, load_run
 from botstage.missions.monitor.server import create_app, start_monitor, start_overview
 from botstage.missions.monitor.sources import Source, remote_source
-from playwright.sync_api import Page, sync_playwright
-
 from tests.monitor_harness import LISTENING, ROOT, live_run
 
 OUT = ROOT / "missions" / "monitor" / "screenshots"

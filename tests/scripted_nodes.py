@@ -8,8 +8,9 @@ from collections.abc import Callable
 from typing import Any
 
 import py_trees
-from botstage.behaviors.kinds import LeafKind, NodeBuild
 from py_trees.common import Status
+
+from botstage.behaviors.kinds import LeafKind, NodeBuild
 
 LETTERS = {"S": Status.SUCCESS, "F": Status.FAILURE, "R": Status.RUNNING}
 LOG: list[str] = []

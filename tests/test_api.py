@@ -12,6 +12,8 @@ from typing import Any
 
 import pytest
 import yaml
+from hypothesis import HealthCheck, given, settings
+
 from botstage.missions.api import (
     Condition,
     Fallback,
@@ -45,8 +47,6 @@ from botstage.missions.runner import MissionInvalid
 from botstage.skills.base import In, Outcome
 from botstage.skills.base import Skill as SkillBase
 from botstage.skills.registry import Registry
-from hypothesis import HealthCheck, given, settings
-
 from tests.test_mission_fuzz import mutated
 
 ROOT = Path(__file__).resolve().parent.parent

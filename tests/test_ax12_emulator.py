@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 import serial
+
 from botstage.robots.ax12 import RAD_PER_UNIT
 from botstage.robots.drivers.dynamixel_servo import (
     ACTION,
@@ -48,7 +49,6 @@ from botstage.robots.emulators.ax12 import (
     Ax12Emulator,
     status_packet,
 )
-
 from tests.launchpad_helpers import FAILSAFE_S, wait_until
 
 ANGLE, RANGE, CHECKSUM, INSTRUCTION = 0x02, 0x08, 0x10, 0x40

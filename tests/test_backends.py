@@ -6,18 +6,19 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from pydantic import Field
+
 from botstage.missions.runner import RunError, run
 from botstage.robots.backend import Backend, BackendError, BackendKind, BackendOptions, OpenRequest
 from botstage.robots.backend_options import OptionSources, parse_assignments, resolve
 from botstage.robots.backend_registry import BackendRegistry
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load as load_map
+from botstage.robots.gridmap import map_path
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import PROFILES_DIR, load_profile
 from botstage.robots.sim.backend import SimBackend
-from botstage.robots.gridmap import map_path
 from botstage.robots.sim.kind import SimKind
-from pydantic import Field
 
 ROOT = Path(__file__).resolve().parent.parent
 DRIVE_DEMO = ROOT / "missions" / "drive_demo.yaml"
@@ -240,8 +241,9 @@ def test_a_backend_that_cannot_open_is_a_run_error(tmp_path: Path) -> None:
 
 
 def test_the_command_line_names_bad_options_and_lists_the_backends(tmp_path: Path) -> None:
-    from botstage.missions.cli import app
     from typer.testing import CliRunner
+
+    from botstage.missions.cli import app
 
     runner = CliRunner()
     run_hardware = ["run", str(DRIVE_DEMO), "-q", "--backend", "hardware", "--out", str(tmp_path / "run")]

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.missions.cli.distributed import free_port, process_commands
 from botstage.missions.deployment import OPERATOR, check_deployment
 from botstage.missions.distributed.operator import Operator
@@ -50,7 +51,6 @@ from botstage.robots.ros2.teleop import open_served
 from botstage.robots.ros2.topics import routes
 from botstage.robots.sim.backend import SimBackend
 from botstage.robots.teleop import Teleop, run_teleop
-
 from tests.test_ros2_interop import listening_node
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -13,12 +13,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
 from botstage.robots import PROFILES_DIR
 from botstage.robots.clock import SimClock
 from botstage.robots.drivers.bittle_base import BittleBase, open_bittle
 from botstage.robots.interfaces import Battery, Drive, Odometry, Pose2D, check_interfaces
 from botstage.robots.profile import Profile, load_profile
-
 from tests.launchpad_helpers import FAILSAFE_S, Board, wait_until
 
 START = Pose2D(1.0, 2.0, 0.5)

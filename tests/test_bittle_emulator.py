@@ -15,15 +15,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
 from botstage.robots.clock import WallClock
 from botstage.robots.drivers.bittle_base import BittleBase
 from botstage.robots.emulators.backend import EmulatorBackend
 from botstage.robots.emulators.nyboard import NyBoardEmulator
 from botstage.robots.gridmap import load as load_map
+from botstage.robots.gridmap import map_path
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.gridmap import map_path
-
 from tests.launchpad_helpers import wait_until
 
 OPEN_FLOOR = Pose2D(10.0, 7.0, 0.0)

@@ -1,4 +1,5 @@
 import pytest
+
 from botstage.behaviors.blackboard import AccessError, Blackboard, BlackboardError, KeyTypeError, MissingKeyError
 from botstage.behaviors.trace import Trace
 from botstage.robots.clock import SimClock

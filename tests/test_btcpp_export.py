@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.behaviors.btcpp.export import ExportError, export_loaded, export_mission, normal_form
 from botstage.behaviors.btcpp.xml_format import loads_xml
 from botstage.missions.check import check

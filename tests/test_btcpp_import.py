@@ -8,11 +8,12 @@ from typing import Any
 
 import pytest
 import yaml
+from typer.testing import CliRunner
+
 from botstage.behaviors.btcpp.xml_format import load_xml, loads_xml
 from botstage.missions.check import check
 from botstage.missions.cli import app
 from botstage.missions.runner import run
-from typer.testing import CliRunner
 
 NAV2 = Path(__file__).resolve().parents[2] / "shared" / "nav2"
 
@@ -173,7 +174,6 @@ def test_nav2_trees_need_only_the_goal_nav2s_navigator_writes() -> None:
         for problem in check(path).problems:  # Nav2's navigator writes `goal` (`goals`): `run --set goal=...`
             assert problem.message.startswith("blackboard key 'goal' is read here but nothing writes"), problem
             assert problem.location.line > 1
-
 
 
 # -- scripts, pre/post conditions, includes, keyed ports, SubTree literals, TreeNodesModel ---------

@@ -14,10 +14,10 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from botstage.behaviors.builder import SpecError
-from botstage.behaviors.kinds import NodeKinds
 from py_trees.common import Status
 
+from botstage.behaviors.builder import SpecError
+from botstage.behaviors.kinds import NodeKinds
 from tests.scripted_nodes import LOG, A, B, C, Scripted, leaf, run
 
 

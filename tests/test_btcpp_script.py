@@ -7,6 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+
 from botstage.behaviors.btcpp.script import ScriptError, ScriptRuntimeError, compile_script
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from botstage.missions.cli import app
 from typer.testing import CliRunner
 
+from botstage.missions.cli import app
 from tests.test_converse import brain_cache, isolated_cache  # noqa: F401 (fixtures: the test cache)
 
 runner = CliRunner()

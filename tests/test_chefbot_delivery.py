@@ -16,11 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from typer.testing import CliRunner
+
 from botstage.behaviors.engine import Engine
 from botstage.missions.cli import app
 from botstage.missions.runner import RunResult, run
 from botstage.robots.gridmap import load
-from typer.testing import CliRunner
 
 ROOT = Path(__file__).resolve().parent.parent
 MISSION = ROOT / "missions/chefbot_delivery.yaml"

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from botstage.missions.scenario import load_scenario
 from botstage.missions.scenario_suite import run_in_folder
 from botstage.missions.session.result import exit_status

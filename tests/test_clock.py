@@ -1,6 +1,7 @@
 import time
 
 import pytest
+
 from botstage.robots.clock import SimClock, WallClock
 
 

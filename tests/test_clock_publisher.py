@@ -12,7 +12,6 @@ from botstage.missions.runner import run
 from botstage.robots.ros2.liveliness import EntityKind
 from botstage.robots.ros2.node import Ros2Node
 from botstage.robots.ros2.readings import seconds_of
-
 from tests.test_ros2_interop import listening_node
 
 ROOT = Path(__file__).resolve().parent.parent

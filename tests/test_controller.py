@@ -6,6 +6,7 @@ import itertools
 import math
 
 import pytest
+
 from botstage.robots.gridmap import load
 from botstage.robots.interfaces import LaserScan, Pose2D
 from botstage.robots.profile import load_profile

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.skills.base import Outcome, Skill, SkillContext, SkillLogger
 from botstage.skills.chat import cache

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.missions.services import RobotServices
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load

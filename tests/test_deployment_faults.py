@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.missions.cli.distributed import free_port, process_commands
 from botstage.missions.deployment import check_deployment
 from botstage.missions.distributed.supervisor import Supervisor

@@ -25,6 +25,8 @@ from typing import Any
 import pytest
 import typer
 import zenoh
+from typer.testing import CliRunner
+
 from botstage.missions.cli.certs import certs as certs_command
 from botstage.missions.cli.distributed import free_port
 from botstage.missions.deployment import OPERATOR, check_deployment
@@ -52,8 +54,6 @@ from botstage.skills.registry import Registry
 from botstage.skills.remote.host import SkillHost
 from botstage.skills.remote.protocol import Call, Step, TickRequest, request_fields
 from botstage.skills.remote.ros2_link import SERVICE_TYPE, SkillTickLink, serve_skill_host, service_name
-from typer.testing import CliRunner
-
 from tests.test_ros2_security import _ingress_only, wait_matching
 
 ROOT = Path(__file__).resolve().parent.parent

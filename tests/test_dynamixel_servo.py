@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
 from botstage.robots.ax12 import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, angle_to_raw, raw_to_angle, speed_to_raw
 from botstage.robots.drivers.dynamixel_servo import (
     ADDR_CCW_LIMIT,
@@ -25,7 +26,6 @@ from botstage.robots.drivers.dynamixel_servo import (
     decode_error,
 )
 from botstage.robots.emulators.ax12 import Ax12Emulator
-
 from tests.launchpad_helpers import wait_until
 
 LATENCY_MS = 50.0  # the SDK's packet timeout becomes about 100 ms

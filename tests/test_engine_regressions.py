@@ -5,10 +5,10 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from botstage.behaviors.builder import SpecError
-from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
 from py_trees.common import Status
 
+from botstage.behaviors.builder import SpecError
+from botstage.skills.base import Outcome, Skill, SkillContext, SkillRun
 from tests.conftest import index_of
 
 

@@ -9,10 +9,10 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+
 from botstage.missions import DEFAULT_MISSION
 from botstage.missions.runner import run
 from botstage.missions.scenario import load_scenario, run_scenario
-
 from tests.test_cli import botstage
 
 

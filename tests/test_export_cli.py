@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from typer.testing import CliRunner
+
 from botstage.missions.cli import app
 from botstage.missions.groot2.btlog import read_btlog
 from botstage.missions.runner import run
-from typer.testing import CliRunner
-
 from tests.monitor_harness import ROOT
 
 HELLO = ROOT / "missions" / "hello.yaml"

@@ -1,4 +1,5 @@
 import pytest
+
 from botstage.skills.expression import EvaluationError, ExpressionError, compile_expression
 
 VALUES = {"battery_pct": 15, "estop": False, "robot/mode": "docking", "people": [1, 2, 3], "name": "bot"}

@@ -18,6 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+
 from botstage.missions.check import check
 from botstage.missions.runner import run
 from botstage.robots.ax12 import RAD_PER_UNIT, RAD_S_PER_SPEED_UNIT, speed_to_raw
@@ -39,7 +40,6 @@ from botstage.robots.sim.backend import SimBackend
 from botstage.robots.sim.devices import SimPan
 from botstage.robots.sim.people import Person
 from botstage.skills.perception.face_tracking import FaceDetector
-
 from tests.launchpad_helpers import wait_until
 
 PROFILE = Path("robots/profiles/face_tracker.yaml")

@@ -6,6 +6,7 @@ import math
 from types import SimpleNamespace
 
 import pytest
+
 from botstage.robots.places import robot_place
 from botstage.robots.profile import Device
 from botstage.robots.sim.camera import CameraView

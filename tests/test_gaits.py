@@ -6,11 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
+
 from botstage.robots import PROFILES_DIR
 from botstage.robots.gaits import Direction, GaitOdometry, Gaits, choose, motion_of
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import load_profile
-from pydantic import ValidationError
 
 
 @pytest.fixture(scope="module")

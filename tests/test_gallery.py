@@ -16,9 +16,9 @@ import cv2
 import httpx
 import numpy as np
 import pytest
+
 from botstage.missions.gallery.server import RunningGallery, start_gallery
 from botstage.missions.serving import bind, is_loopback
-
 from tests.test_outbox import TOKEN, make_photo, photos_in, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent

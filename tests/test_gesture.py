@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.drivers.rosserial import RosserialDriver
 from botstage.robots.emulators.imu_arduino import HandScript, ImuArduino
@@ -15,7 +16,6 @@ from botstage.robots.places import robot_place
 from botstage.robots.sim.backend import SimBackend
 from botstage.robots.teleop import drive_loop
 from botstage.skills.gesture import GestureCommands, GestureConfig, GestureConverter, load_config
-
 from tests.launchpad_helpers import wait_until
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from botstage.robots.gridmap import FREE, OCCUPIED, UNKNOWN, GridMap, MapError, load, read_pgm, save, write_pgm
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "maps" / "tb3_sandbox.yaml"

@@ -21,6 +21,7 @@ from typing import Any
 
 import pytest
 import zmq
+
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.trace import read_jsonl
 from botstage.missions.check import build_root, check, root_spec_path

@@ -18,6 +18,7 @@ from typing import Any
 
 import pytest
 import serial
+
 from botstage.robots.drivers import rosserial_protocol as rp
 from botstage.robots.drivers.rosserial import RosserialDriver
 from botstage.robots.drivers.rosserial_protocol import Packet, PacketDecoder, encode_packet
@@ -30,7 +31,6 @@ from botstage.robots.emulators.imu_arduino import (
     as_published,
     dmp_quaternion,
 )
-
 from tests.launchpad_helpers import FAILSAFE_S, wait_until
 
 HOST_TIME = 1_700_000_123.25

@@ -20,16 +20,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
 from botstage.missions.runner import RunError, run
 from botstage.robots.clock import WallClock
 from botstage.robots.drivers.launchpad_protocol import LineDecoder
 from botstage.robots.emulators.backend import EmulatorBackend
 from botstage.robots.emulators.launchpad import LaunchpadEmulator
 from botstage.robots.gridmap import load as load_map
+from botstage.robots.gridmap import map_path
 from botstage.robots.interfaces import Pose2D, check_interfaces
 from botstage.robots.sim.backend import populated_world
-from botstage.robots.gridmap import map_path
-
 from tests.launchpad_helpers import FAILSAFE_S, Delivered, chefbot, wait_until
 
 ROOT = Path(__file__).resolve().parent.parent

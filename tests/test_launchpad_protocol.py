@@ -6,6 +6,7 @@ import math
 import random
 
 import pytest
+
 from botstage.robots.drivers.launchpad_protocol import (
     BadLine,
     BatteryVolts,

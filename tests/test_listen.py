@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load
 from botstage.robots.interfaces import Pose2D

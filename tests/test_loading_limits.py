@@ -19,6 +19,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+
 from botstage.missions.check import INTERNAL, check
 from botstage.missions.loader import load
 from botstage.robots import limits

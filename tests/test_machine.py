@@ -5,9 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from botstage.behaviors.builder import SpecError
 from py_trees.common import Status
 
+from botstage.behaviors.builder import SpecError
 from tests.conftest import index_of
 
 

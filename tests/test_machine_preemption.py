@@ -12,12 +12,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from py_trees.common import Status
+
 from botstage.behaviors.engine import Engine
 from botstage.missions.check import check
 from botstage.missions.runner import build
 from botstage.skills.registry import Registry
-from py_trees.common import Status
-
 from tests.conftest import index_of
 
 

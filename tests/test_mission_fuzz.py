@@ -8,9 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from botstage.missions.check import INTERNAL, check
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+from botstage.missions.check import INTERNAL, check
 
 MISSIONS = [Path("missions/hello.yaml").read_text(encoding="utf-8")] + [
     p.read_text(encoding="utf-8") for p in sorted(Path("missions").glob("*.yaml")) if p.name != "hello.yaml"

@@ -12,11 +12,11 @@ from typing import Any
 
 import httpx
 import pytest
+
 from botstage.missions.monitor.replay import load_run
 from botstage.missions.monitor.server import create_app, start_overview
 from botstage.missions.monitor.sources import Source, check_remote_url, remote_source, source_name
 from botstage.missions.runner import run
-
 from tests.monitor_harness import ROOT, LiveRun, live_run, wait_until
 from tests.test_monitor_browser import browser, open_page, page  # noqa: F401  (the browser's fixtures)
 

@@ -7,11 +7,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import yaml
+
 from botstage.behaviors.trace import read_jsonl
 from botstage.missions.replay import from_trace
 from botstage.missions.scenario import load_scenario, run_scenario
 from botstage.missions.steering import ESTOP, TeleopStretch, read_teleop_note, teleop_note
-
 from tests.monitor_harness import live_run, wait_until
 
 

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
+
 from botstage.behaviors.builder import SpecError
 from botstage.behaviors.kinds import NodeKinds
-
 from tests.scripted_nodes import LOG, A, B, C, Hook, Scripted, leaf, run
 
 

@@ -15,6 +15,8 @@ from typing import Any
 
 import pytest
 import yaml
+from typer.testing import CliRunner
+
 from botstage.behaviors.btcpp.xml_format import load_xml, loads_xml
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
@@ -22,8 +24,6 @@ from botstage.behaviors.nav2.models import check_models
 from botstage.behaviors.nav2.navigator import Navigator
 from botstage.missions.cli import app
 from botstage.skills.registry import Registry
-from typer.testing import CliRunner
-
 from tests.bench.bench_tick import NAV2_YAML
 from tests.bench.navsim import NavSim
 

@@ -7,12 +7,13 @@ from typing import Annotated, Any
 
 import py_trees
 import pytest
+from pydantic import Field
+
 from botstage.behaviors.builder import SpecError
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, KindOptions, NodeBuild, NodeKinds
 from botstage.behaviors.render import describe, to_text
 from botstage.missions.schema import json_schema
 from botstage.skills.registry import Registry
-from pydantic import Field
 
 BUILTIN = {
     "sequence",

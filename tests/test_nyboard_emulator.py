@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import serial
+
 from botstage.robots.drivers.opencat_protocol import Attitude, ReplyDecoder, parse_reply
 from botstage.robots.emulators.nyboard import (
     LOW_VOLTAGE_V,
@@ -28,11 +29,10 @@ from botstage.robots.emulators.nyboard import (
     resolve_skill,
 )
 from botstage.robots.gridmap import load as load_map
+from botstage.robots.gridmap import map_path
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Profile, load_profile, profile_path
-from botstage.robots.gridmap import map_path
 from botstage.robots.sim.world import World
-
 from tests.launchpad_helpers import FAILSAFE_S, wait_until
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.behaviors.trace import dumps
 from botstage.missions.runner import RunError, StopRun, run
 from botstage.missions.session import RunSession, observer_registry, service_registry

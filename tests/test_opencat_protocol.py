@@ -5,6 +5,7 @@ from __future__ import annotations
 import random
 
 import pytest
+
 from botstage.robots.drivers import opencat_protocol as opencat
 
 # OpenCat 2 boots, then rests

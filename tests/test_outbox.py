@@ -21,6 +21,7 @@ import cv2
 import httpx
 import numpy as np
 import pytest
+
 from botstage.missions.gallery.server import RunningGallery, start_gallery
 from botstage.skills.outbox.outbox import Outbox
 from botstage.skills.outbox.settings import TOKEN_ENV, OutboxSettings

@@ -11,12 +11,12 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+
 from botstage.robots.interfaces import CameraInfo, Pose2D
 from botstage.robots.sim.devices import SimDisplay
 from botstage.skills.display import LAYOUTS, Display
 from botstage.skills.files import RunFiles, write_atomically
 from botstage.skills.photo import Photo
-
 from tests.test_converse import Harness
 
 

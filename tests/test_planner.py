@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from botstage.robots.gridmap import FREE, OCCUPIED, GridMap, load
 from botstage.skills.nav.costmap import inflated_costs
 from botstage.skills.nav.planner import Planner, Unreachable

@@ -6,8 +6,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from botstage.skills.registry import ENTRY_POINT_GROUP, Registry
 
+from botstage.skills.registry import ENTRY_POINT_GROUP, Registry
 from tests.tools import install_wheel
 
 MODULE = """

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from botstage.missions.check import check
 from botstage.robots.profile import known_profiles, load_profile
 

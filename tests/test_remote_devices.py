@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from botstage.missions.runner import run
 from botstage.robots.backend import BackendOptions, OpenRequest
 from botstage.robots.backend_registry import BackendRegistry

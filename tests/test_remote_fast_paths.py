@@ -12,6 +12,8 @@ import random
 from typing import Any
 
 import pytest
+from pydantic import BaseModel
+
 from botstage.robots.clock import SimClock
 from botstage.robots.remote import values
 from botstage.robots.ros2 import attachment
@@ -20,7 +22,6 @@ from botstage.skills.registry import Registry
 from botstage.skills.remote import rng
 from botstage.skills.remote.host import SkillHost
 from botstage.skills.remote.protocol import Call, DirectLink, Step, TickRequest, request_fields, request_of
-from pydantic import BaseModel
 
 # every public method of random.Random, with arguments: a new one fails the first test until
 # it is listed here (and checked below to be seen when it touches the state)

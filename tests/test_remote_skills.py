@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.missions.runner import run
 from botstage.robots.remote import values
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun

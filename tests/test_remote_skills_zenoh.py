@@ -16,13 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.robots.ros2.node import Ros2Node
 from botstage.skills.base import Outcome, SkillContext, SkillLogger
 from botstage.skills.execution import SkillExecution
 from botstage.skills.registry import Registry
 from botstage.skills.remote.proxy import remote_of
 from botstage.skills.remote.ros2_link import SkillTickLink
-
 from tests.test_remote_skills import Board, Clock
 from tests.test_ros2_interop import listening_node
 

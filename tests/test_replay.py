@@ -11,6 +11,7 @@ from typing import Any
 
 import pytest
 import yaml
+
 from botstage.behaviors.trace import read_jsonl
 from botstage.missions.replay import BOOKKEEPING, from_trace
 from botstage.missions.runner import run

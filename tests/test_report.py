@@ -8,8 +8,8 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from botstage.missions.runner import run
 
+from botstage.missions.runner import run
 from tests.tools import require
 
 

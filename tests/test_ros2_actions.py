@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy
 import pytest
+
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.action import (
     ActionServer,
@@ -33,7 +34,6 @@ from botstage.robots.ros2.liveliness import EntityKind
 from botstage.robots.ros2.node import Ros2Node
 from botstage.robots.ros2.qos import Durability
 from botstage.robots.ros2.service import ServiceUnavailable
-
 from tests.ros2_client.independent_interfaces import independent_hashes
 from tests.test_ros2_interop import FAILSAFE_S, ClientProcess, listening_node, pyzeros_codecs  # noqa: F401
 

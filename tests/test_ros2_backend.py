@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from botstage.robots.backend import BackendError, OpenRequest
 from botstage.robots.backend_options import OptionSources, resolve
 from botstage.robots.backend_registry import BackendRegistry
@@ -33,7 +34,6 @@ from botstage.robots.ros2 import endpoints, node, readings
 from botstage.robots.ros2.backend import Ros2Kind
 from botstage.robots.ros2.proxies import ClockRef, Latest, StaleReadingError, anchored
 from botstage.robots.ros2.topic_robot import Ros2Backend
-
 from tests.test_ros2_interop import (  # noqa: F401  (pyzeros_codecs is a fixture)
     FAILSAFE_S,
     ClientProcess,

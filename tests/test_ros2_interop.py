@@ -26,6 +26,7 @@ from typing import Any
 
 import pytest
 import zenoh
+
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.attachment import Attachment, encode, entity_gid
 from botstage.robots.ros2.graph import Graph

@@ -6,6 +6,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
 from botstage.robots.interfaces import (
     BatteryState,
     ImuReading,
@@ -17,8 +20,6 @@ from botstage.robots.interfaces import (
 )
 from botstage.robots.ros2 import readings
 from botstage.robots.ros2.readings import standard_types
-from hypothesis import given
-from hypothesis import strategies as st
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
 angle = st.floats(min_value=-math.pi + 1e-9, max_value=math.pi - 1e-9)

@@ -28,6 +28,11 @@ from typing import Any
 import pytest
 import typer
 import zenoh
+from cryptography import x509
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import ExtendedKeyUsageOID
+from typer.testing import CliRunner
+
 from botstage.missions.cli.certs import certs as certs_command
 from botstage.robots.ros2 import certs, types
 from botstage.robots.ros2.attachment import Attachment, encode
@@ -47,10 +52,6 @@ from botstage.robots.ros2.security import (
     tls_options,
 )
 from botstage.robots.ros2.service import ServiceUnavailable
-from cryptography import x509
-from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import ExtendedKeyUsageOID
-from typer.testing import CliRunner
 
 ROOT = Path(__file__).resolve().parent.parent
 FIVE = ROOT / "missions" / "deployments" / "peoplebot_five_computers.yaml"

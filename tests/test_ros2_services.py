@@ -19,6 +19,8 @@ from typing import Any
 
 import pytest
 import zenoh
+from ros2_pyterfaces.cyclone.std_srvs.srv import Empty, SetBool, Trigger
+
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.attachment import Attachment, decode, encode
 from botstage.robots.ros2.liveliness import EntityKind, parse_token
@@ -31,8 +33,6 @@ from botstage.robots.ros2.service import (
     ServiceUnavailable,
     is_zenoh_timeout,
 )
-from ros2_pyterfaces.cyclone.std_srvs.srv import Empty, SetBool, Trigger
-
 from tests.ros2_client.independent_interfaces import AddTwoInts, Measure, Measure_Request, Thing
 from tests.test_ros2_interop import FAILSAFE_S, listening_node, until
 

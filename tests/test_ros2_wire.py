@@ -11,6 +11,9 @@ import struct
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
 from botstage.robots.ros2 import qos as qos_strings
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.attachment import Attachment, AttachmentError, decode, encode, entity_gid
@@ -36,8 +39,6 @@ from botstage.robots.ros2.names import (
     validate_topic_name,
 )
 from botstage.robots.ros2.qos import INFINITE, Durability, History, Liveliness, QoS, Reliability
-from hypothesis import given
-from hypothesis import strategies as st
 
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"  # design.md
 ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"  # design.md

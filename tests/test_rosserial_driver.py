@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from botstage.robots.drivers import rosserial_protocol as rp
 from botstage.robots.drivers.rosserial import BAUD, Orientation, RosserialDriver
 from botstage.robots.drivers.rosserial_protocol import Packet, PacketDecoder, encode_packet
-
 from tests.launchpad_helpers import FAILSAFE_S, Board, wait_until
 
 HOST_TIME = 1_700_000_123.25

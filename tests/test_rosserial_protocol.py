@@ -10,10 +10,11 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from botstage.robots.drivers import rosserial_protocol as rp
-from botstage.robots.drivers.rosserial_protocol import OVERHEAD, Packet, PacketDecoder, encode_packet
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+from botstage.robots.drivers import rosserial_protocol as rp
+from botstage.robots.drivers.rosserial_protocol import OVERHEAD, Packet, PacketDecoder, encode_packet
 
 
 def feed_all(decoder: PacketDecoder, stream: bytes, cuts: list[int] | None = None) -> list[Packet]:

@@ -12,10 +12,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
 from botstage.missions.runner import run
 from botstage.missions.session import observer_registry, service_registry
 from botstage.robots.backend_registry import BackendRegistry
-
 from tests.tools import install_wheel
 
 ROOT = Path(__file__).resolve().parent.parent

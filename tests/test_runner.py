@@ -8,8 +8,8 @@ import signal
 from pathlib import Path
 
 import pytest
-from botstage.missions.runner import WALL_CLOCK_FIELDS, MissionInvalid, RunError, run
 
+from botstage.missions.runner import WALL_CLOCK_FIELDS, MissionInvalid, RunError, run
 from tests.test_cli import botstage
 
 SUMMARY_FIELDS = {

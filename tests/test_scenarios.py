@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+
 from botstage.missions.scenario import load_scenario, mock_of, run_scenario
 from botstage.skills.registry import Registry
-
 from tests.test_cli import botstage
 
 pytest_plugins = ["pytester"]

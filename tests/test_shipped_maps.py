@@ -6,6 +6,7 @@ from collections import deque
 
 import numpy as np
 import pytest
+
 from botstage.robots.gridmap import FREE, GridMap, load
 from botstage.robots.mapdraw import MAPS, MAPS_DIR
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import FREE, load
 from botstage.robots.interfaces import Camera, CameraInfo, Microphone, Pose2D, check_interfaces

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load
 from botstage.robots.interfaces import Pose2D

@@ -14,13 +14,13 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.action import GoalStatus
 from botstage.robots.ros2.node import Ros2Node
 from botstage.skills.registry import Registry
 from botstage.skills.remote.actions import ACTION_TYPE, SkillActions, action_name
 from botstage.skills.remote.host import SkillHost
-
 from tests.test_ros2_interop import listening_node
 
 FAILSAFE_S = 60.0

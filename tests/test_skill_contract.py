@@ -6,12 +6,13 @@ from concurrent.futures import Future
 from typing import Any
 
 import pytest
+from pydantic import BaseModel
+
 from botstage.robots.clock import SimClock
 from botstage.skills.base import In, NoParams, Out, Outcome, Skill, SkillContext, SkillLogger, SkillRun
 from botstage.skills.execution import SkillExecution
 from botstage.skills.testing import DictBoard
 from botstage.skills.workers import Workers
-from pydantic import BaseModel
 
 
 def context(skill: Skill, logs: list[str] | None = None, workers: Workers | None = None) -> SkillContext:

@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from botstage.missions.runner import run as run_mission
 from botstage.missions.transcript import read_transcript
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import AudioSpeaker, Speaker
 from botstage.robots.sim.devices import SimSpeaker
-from botstage.skills.tts import SpeechError, read_wav, synthesise
 from botstage.skills.speak import Speak
-
+from botstage.skills.tts import SpeechError, read_wav, synthesise
 from tests.test_converse import Harness, brain_cache, isolated_cache  # noqa: F401 (fixtures: the test cache)
 from tests.tools import require
 

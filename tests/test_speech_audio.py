@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from botstage.skills.speech.vad import FRAME, VoiceActivityDetector, find_utterances
 from botstage.skills.speech.wav import RATE, WavFormatError, read_wav, write_wav
 

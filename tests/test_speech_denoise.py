@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
 from botstage.skills.speech.denoise import estimate_snr, suppress_noise
 from botstage.skills.speech.recognizer import Recognizer, shared_recognizer
 from botstage.skills.speech.wav import read_wav

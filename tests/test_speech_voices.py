@@ -6,6 +6,7 @@ import itertools
 
 import numpy as np
 import pytest
+
 from botstage.missions.schema import VOICE_COMMANDS
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load
@@ -16,7 +17,6 @@ from botstage.robots.sim.people import Person
 from botstage.robots.sim.voices import Voices, clips
 from botstage.skills.speech.recognizer import shared_recognizer
 from botstage.skills.speech.vad import find_utterances
-
 from tests.test_listen import Rig
 
 MUSEUM = load("robots/maps/museum.yaml")

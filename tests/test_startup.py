@@ -37,6 +37,7 @@ def test_checking_a_mission_imports_no_heavy_package() -> None:
 def test_the_heavy_packages_still_load_where_they_are_used() -> None:
     """The lazy imports are real: the functions that need scipy and filterpy work (no stale names)."""
     import numpy as np
+
     from botstage.robots.gridmap import FREE, GridMap
     from botstage.robots.interfaces import Pose2D
     from botstage.skills.nav.costmap import inflated_costs

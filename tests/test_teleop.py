@@ -11,15 +11,15 @@ import time
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
+
 from botstage.missions.cli import app
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load as load_map
+from botstage.robots.gridmap import map_path
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.sim.backend import SimBackend
-from botstage.robots.gridmap import map_path
 from botstage.robots.teleop import StreamKeys, Teleop, run_teleop, split_keys, status
-from typer.testing import CliRunner
-
 from tests.launchpad_helpers import chefbot
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
+
 from botstage.robots.clock import SimClock
 from botstage.robots.interfaces import CameraInfo, Pan
 from botstage.robots.profile import Device
@@ -25,7 +27,6 @@ from botstage.skills.registry import Registry
 from botstage.skills.testing import DictBoard
 from botstage.skills.track_face import FaceTrackParams, TrackFace
 from botstage.skills.workers import Workers
-from pydantic import ValidationError
 
 WIDTH, HEIGHT, FOV = 640, 480, 1.085
 FOCAL = (WIDTH / 2) / math.tan(FOV / 2)

@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 import yaml
+
 from botstage.missions.gallery.server import start_gallery
 from botstage.missions.runner import run as run_mission
 from botstage.robots.clock import SimClock
@@ -23,7 +24,6 @@ from botstage.skills.outbox.settings import TOKEN_ENV, OutboxSettings
 from botstage.skills.testing import DictBoard as Board
 from botstage.skills.upload import Upload
 from botstage.skills.workers import Workers
-
 from tests.test_outbox import TOKEN, make_photo, photos_in
 
 

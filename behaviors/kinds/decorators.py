@@ -7,11 +7,12 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, ClassVar, Literal
 
 import py_trees
+from py_trees.common import Status
+from pydantic import Field
+
 from botstage.behaviors.decorators import ClockTimeout, Guard
 from botstage.behaviors.kinds.base import DecoratorKind, KindOptions, NodeBuild
 from botstage.robots.limits import MAX_SECONDS, MAX_TIMES, PositiveSeconds, Seconds, Times
-from py_trees.common import Status
-from pydantic import Field
 
 if TYPE_CHECKING:
     from botstage.behaviors.runtime import Runtime

@@ -11,6 +11,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import py_trees
+from pydantic import Field
+
 from botstage.behaviors.kinds.base import (
     CONDITION_SCHEMA,
     MACHINE_REF,
@@ -22,7 +24,6 @@ from botstage.behaviors.kinds.base import (
 )
 from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
 from botstage.skills.registry import Registry
-from pydantic import Field
 
 SUCCESS_ON_SCHEMA: dict[str, Any] = {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]}
 

@@ -13,8 +13,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from botstage.behaviors.engine import Engine
 from py_trees.common import Status
+
+from botstage.behaviors.engine import Engine
 
 # Nav2's default error_code_name_prefixes (nav2_bt_navigator), each as `<prefix>_error_code`
 ERROR_CODE_PREFIXES = (

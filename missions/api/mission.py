@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yaml
+
 from botstage.missions.api.lowering import Lowering, Part, in_order
 from botstage.missions.api.machine import StateMachine
 from botstage.missions.api.nodes import NodeLike, as_node
@@ -338,8 +339,8 @@ class Mission:
 
     def _runnable(self, name: str) -> dict[str, Any]:
         """The data to run from a file elsewhere: named, its robot and world paths made absolute."""
-        from botstage.robots.profile import known_profiles, profile_path
         from botstage.robots.gridmap import known_maps, map_path
+        from botstage.robots.profile import known_profiles, profile_path
 
         data = {"name": name, **self.to_dict()}
         for field, find, shipped in (("robot", profile_path, known_profiles), ("world", map_path, known_maps)):

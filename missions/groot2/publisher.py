@@ -30,12 +30,13 @@ from typing import TYPE_CHECKING, Any
 
 import py_trees
 import zmq
+from py_trees.common import Status
+
 from botstage.behaviors.skill_behaviour import SkillBehaviour
 from botstage.behaviors.trace import jsonable
 from botstage.missions.groot2 import protocol as p
 from botstage.missions.groot2.tree import GrootTree, StatusBuffer
 from botstage.skills.base import Outcome
-from py_trees.common import Status
 
 if TYPE_CHECKING:
     from botstage.missions.session.result import RunResult

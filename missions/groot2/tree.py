@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, get_args, get_origin
 
 import py_trees
+
 from botstage.behaviors.machine import Level, MachineBehaviour, MachinePlan
 from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
 from botstage.missions.groot2.protocol import FAILURE, IDLE, IDLE_FROM, PY_TREES, RUNNING, SUCCESS

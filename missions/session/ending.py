@@ -8,8 +8,9 @@ from contextlib import contextmanager
 from typing import Any
 
 import py_trees
-from botstage.behaviors.machine import MachineBehaviour, failure_reason
 from py_trees.common import Status
+
+from botstage.behaviors.machine import MachineBehaviour, failure_reason
 
 
 class SigtermLatch:

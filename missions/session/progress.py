@@ -8,9 +8,10 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import py_trees
+from py_trees.common import Status
+
 from botstage.behaviors.machine import MachineBehaviour
 from botstage.behaviors.skill_behaviour import SkillBehaviour
-from py_trees.common import Status
 
 if TYPE_CHECKING:
     from botstage.missions.session.session import RunSession

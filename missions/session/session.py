@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import IO, Any
 
 import py_trees
+from py_trees.common import Status
+
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import NodeKinds
 from botstage.behaviors.suggest import did_you_mean
@@ -50,7 +52,6 @@ from botstage.robots.interfaces import Pose2D
 from botstage.robots.located_yaml import Locations, Problem
 from botstage.robots.profile import Profile, load_profile, profile_path
 from botstage.skills.registry import Registry
-from py_trees.common import Status
 
 DONE = (Status.SUCCESS, Status.FAILURE)
 

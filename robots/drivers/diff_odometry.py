@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from botstage.robots.interfaces import Pose2D, Twist2D
 
 

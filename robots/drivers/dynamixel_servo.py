@@ -74,6 +74,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import serial
+from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
+
 from botstage.robots.ax12 import (  # the servo's units and conversions, shared with the simulator
     BAUD,
     CENTRE,
@@ -88,7 +90,6 @@ from botstage.robots.ax12 import (  # the servo's units and conversions, shared 
     speed_to_raw,
 )
 from botstage.robots.drivers.serial_link import RateLimitedLog
-from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, PacketHandler, PortHandler
 
 try:
     from termios import error as TermiosError

@@ -6,9 +6,10 @@ every other robot the board that drives its base (``SerialBackend``)."""
 
 from __future__ import annotations
 
+from pydantic import Field
+
 from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 from botstage.robots.drivers.launchpad_protocol import BAUD
-from pydantic import Field
 
 
 class HardwareOptions(BackendOptions):

@@ -56,9 +56,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from rosbags.typesys.store import Typestore
+
 from botstage.robots.drivers import rosserial_protocol as rp
 from botstage.robots.drivers.serial_link import RateLimitedLog, SerialLink
-from rosbags.typesys.store import Typestore
 
 log = logging.getLogger(__name__)
 device_log = logging.getLogger(__name__ + ".device")

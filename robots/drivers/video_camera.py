@@ -16,6 +16,7 @@ import time
 
 import cv2
 import numpy as np
+
 from botstage.robots.interfaces import CameraInfo
 
 _log = logging.getLogger("botstage.drivers.camera")

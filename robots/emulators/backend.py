@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.backend import Fault, ScriptedWalk
 from botstage.robots.clock import Clock
 from botstage.robots.drivers.backend import SerialBackend, board_of

@@ -5,8 +5,9 @@ For a robot whose only moving part is a Dynamixel pan (the face tracker) the boa
 
 from __future__ import annotations
 
-from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 from pydantic import Field
+
+from botstage.robots.backend import Backend, BackendKind, BackendOptions, OpenRequest
 
 
 class EmulatorOptions(BackendOptions):

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
 from botstage.robots.drivers.launchpad_protocol import PWM_LIMIT, CommandDecoder
 from botstage.robots.emulators.pty_board import MAX_DROP, MAX_GARBAGE, MAX_UNPLUG_S, PtyBoard
 from botstage.robots.sim.world import World

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.backend import Fault, ScriptedWalk
 from botstage.robots.clock import Clock
 from botstage.robots.drivers.pan_head import pan_joint, servo_for

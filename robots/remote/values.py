@@ -20,6 +20,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
+
 from botstage.robots import interfaces
 
 TAG = "$"  # dicts whose only key starts with this are tags; a real dict like that is wrapped too

@@ -11,6 +11,7 @@ import threading
 from typing import Any
 
 import zenoh
+
 from botstage.robots.remote.devices import RemoteLost
 from botstage.robots.ros2.service import (
     ServiceCancelled,

@@ -43,6 +43,7 @@ from enum import IntEnum
 from typing import TYPE_CHECKING, Any
 
 import numpy
+
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.attachment import Attachment
 from botstage.robots.ros2.names import fully_qualified_name

@@ -19,6 +19,7 @@ import math
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.interfaces import AUDIO_RATE_HZ, TrackedPerson
 from botstage.robots.ros2 import types
 from botstage.robots.ros2.readings import header

@@ -31,11 +31,12 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from botstage.robots.ros2.names import validate_node_name
 from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+
+from botstage.robots.ros2.names import validate_node_name
 
 CA_CERT = "ca.pem"
 CA_KEY = "ca.key"

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.clock import Clock
 from botstage.robots.interfaces import (
     AUDIO_BUFFER_S,

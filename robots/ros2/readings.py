@@ -20,6 +20,8 @@ from functools import cache
 from typing import Any
 
 import numpy as np
+from rosbags.typesys import Stores, get_typestore
+
 from botstage.robots.interfaces import (
     BatteryState,
     ImuReading,
@@ -29,7 +31,6 @@ from botstage.robots.interfaces import (
     SonarReading,
     Twist2D,
 )
-from rosbags.typesys import Stores, get_typestore
 
 ODOM_FRAME = "odom"  # REP 105
 BASE_FRAME = "base_link"

@@ -29,11 +29,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy
-from botstage.robots.ros2 import type_description
-from botstage.robots.ros2.type_description import Field, nested
 from rosbags.interfaces import Nodetype
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from botstage.robots.ros2 import type_description
+from botstage.robots.ros2.type_description import Field, nested
 
 MSG_ROOT = Path(__file__).parent / "msg"
 

@@ -11,7 +11,6 @@ from botstage.robots.backend import Fault, ScriptedWalk
 from botstage.robots.clock import Clock
 from botstage.robots.gridmap import GridMap
 from botstage.robots.interfaces import Pose2D
-from botstage.robots.located_yaml import find_yaml
 from botstage.robots.profile import Profile
 from botstage.robots.sim.devices import (
     SimBattery,

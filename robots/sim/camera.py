@@ -40,6 +40,7 @@ from typing import Protocol
 
 import cv2
 import numpy as np
+
 from botstage.robots.profile import Device
 from botstage.robots.sim.world import RAY_STEP, World
 

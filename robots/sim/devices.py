@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
+
 from botstage.robots.clock import Clock
 from botstage.robots.gaits import GaitOdometry, Gaits, choose
 from botstage.robots.interfaces import (

@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from botstage.robots.backend import ScriptedWalk
 from botstage.robots.gridmap import FREE, GridMap
 from botstage.robots.sim.world import inflate

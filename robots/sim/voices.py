@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+
 from botstage.robots.sim.devices import SimMicrophone
 from botstage.robots.sim.people import Crowd
 from botstage.robots.sim.world import World

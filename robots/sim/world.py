@@ -39,6 +39,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from botstage.robots.gridmap import FREE, GridMap
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import Device, Profile

@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from aiml.PatternMgr import PatternMgr
+
 from botstage.skills.chat.learn import Categories
 
 _SPECIAL = (

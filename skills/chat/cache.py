@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Literal
 
 from aiml.constants import VERSION as PYAIML_VERSION
+
 from botstage.robots.located_yaml import Location, Problem
 from botstage.skills.chat.brain import FlatTrie, build
 from botstage.skills.chat.learn import learn_files

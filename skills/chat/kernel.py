@@ -19,6 +19,7 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from aiml import Kernel
+
 from botstage.robots.clock import Clock
 from botstage.skills.chat.brain import FlatBrain, FlatTrie
 

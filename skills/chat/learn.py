@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from aiml.AimlParser import AimlHandler, AimlParserError
+
 from botstage.robots.located_yaml import Location, Problem, display_name
 
 # (pattern, that, topic) -> template, as python-aiml's handler collects them

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.clock import Clock
 from botstage.robots.interfaces import Pose2D
 

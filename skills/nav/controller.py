@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from botstage.robots.interfaces import LaserScan, Pose2D
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from botstage.robots.gridmap import FREE, GridMap
 
 LETHAL = math.inf

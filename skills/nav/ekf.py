@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.interfaces import Pose2D
 
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.gridmap import GridMap
 from botstage.robots.interfaces import Imu, Laser, Odometry, OdometryReading, Pose2D
 from botstage.robots.profile import Profile

@@ -23,12 +23,13 @@ from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict, Field
+
 from botstage.robots.interfaces import Pose2D
 from botstage.skills.nav.contact import ContactWatch, touched
 from botstage.skills.nav.controller import Command, PathFollower
 from botstage.skills.nav.planner import Unreachable
 from botstage.skills.nav.stack import NavStack
-from pydantic import BaseModel, ConfigDict, Field
 
 OUTCOMES = ("succeeded", "unreachable", "blocked", "timeout", "cancelled")
 # at rest: moved under a millimetre and turned under 0.05 deg in a tick; waited for at most a second

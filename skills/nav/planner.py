@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pyastar2d
+
 from botstage.robots.gridmap import GridMap
 
 

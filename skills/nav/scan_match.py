@@ -56,6 +56,7 @@ from dataclasses import dataclass
 from weakref import finalize, ref
 
 import numpy as np
+
 from botstage.robots.gridmap import FREE, GridMap
 from botstage.robots.interfaces import LaserScan, Pose2D
 from botstage.skills.nav.ekf import pose_residual, wrap

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from botstage.robots.interfaces import Pose2D
 from botstage.skills.nav.stack import NavStack
 

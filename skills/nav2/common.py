@@ -11,6 +11,7 @@ import math
 from typing import Any
 
 import numpy as np
+
 from botstage.skills.base import In, Port
 from botstage.skills.nav.stack import NavStack, blocked_cells
 

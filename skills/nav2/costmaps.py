@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+
 from botstage.skills.base import In, Outcome, Skill, SkillContext
 from botstage.skills.nav.stack import NavStack
 from botstage.skills.nav2.common import ignored

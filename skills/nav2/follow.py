@@ -11,12 +11,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from pydantic import BaseModel, ConfigDict, Field
+
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext, SkillRun
 from botstage.skills.nav.contact import ContactWatch, touched
 from botstage.skills.nav.controller import Command, PathFollower
 from botstage.skills.nav2.common import FOLLOW_PATH, PATH, SERVER, ignored, path_heading, sense, xy
 from botstage.skills.navigate import nav_stack
-from pydantic import BaseModel, ConfigDict, Field
 
 
 class FollowParams(BaseModel):

@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 import numpy as np
+
 from botstage.skills.base import In, Out, Outcome, Skill, SkillContext
 from botstage.skills.nav2.common import GOALS, PATH, SERVER, closest_index, ignored, length, sense, xy
 from botstage.skills.navigate import nav_stack

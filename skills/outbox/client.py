@@ -28,6 +28,7 @@ from typing import Literal
 from urllib.parse import urlsplit, urlunsplit
 
 import httpx
+
 from botstage.skills.outbox.images import MEDIA_TYPES
 from botstage.skills.outbox.store import Item
 

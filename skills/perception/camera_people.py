@@ -20,6 +20,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+
 from botstage.robots.interfaces import TrackedPerson
 
 CASCADE = Path(getattr(getattr(cv2, "data", None), "haarcascades", "")) / "haarcascade_frontalface_default.xml"

@@ -33,6 +33,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+
 from botstage.skills.perception.camera_people import CASCADE, load_cascade
 
 

@@ -19,6 +19,8 @@ import threading
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from pydantic import BaseModel
+
 from botstage.robots.remote import values
 from botstage.skills.base import FAILURE, Outcome, SkillContext, SkillLogger
 from botstage.skills.execution import SkillExecution, describe_exception
@@ -26,7 +28,6 @@ from botstage.skills.registry import Registry, UnknownSkillError
 from botstage.skills.remote.protocol import Call, State, Step, TickReply, TickRequest
 from botstage.skills.remote.rng import LazyRandom
 from botstage.skills.workers import Workers
-from pydantic import BaseModel
 
 log = logging.getLogger(__name__)
 

@@ -14,6 +14,7 @@ from enum import IntEnum
 from typing import Any
 
 import numpy as np
+
 from botstage.robots.remote import values
 from botstage.skills.remote import rng
 
