@@ -22,17 +22,18 @@ import asyncio
 import hmac
 import json
 import os
-from importlib import resources
 from typing import Any
+
+from fastapi import APIRouter, FastAPI, HTTPException, Request
+from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 
 from botstage.missions.monitor.control import Control, ControlError, MalformedCommand
 from botstage.missions.monitor.hub import Hub
+from botstage.missions.monitor.pages import pages_router
 from botstage.missions.monitor.replay import RecordedRun
 from botstage.missions.monitor.robot_view import map_info, map_png
 from botstage.missions.monitor.sources import ProcessesView, Source, create_overview_app, summary
 from botstage.missions.serving import ServerThread, app_config, bind, is_loopback, start_server
-from fastapi import FastAPI, HTTPException, Request
-from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8470
@@ -40,7 +41,6 @@ TOKEN_ENV = "BOTSTAGE_MONITOR_TOKEN"
 PUSH_S = 0.05  # the pages hear of a change within this (p99 well under the 200 ms wanted)
 KEEPALIVE_S = 15.0
 READY_WAIT_S = 20.0  # how long /api/info and /api/structure wait for the run to be built
-_STATIC = resources.files("botstage.missions.monitor") / "static"
 
 
 class MonitorError(Exception):
@@ -51,8 +51,8 @@ def _dumps(value: Any) -> str:
     return json.dumps(value, default=str, ensure_ascii=False, separators=(",", ":"))
 
 
-def _static(name: str, media_type: str | None = None) -> FileResponse:
-    return FileResponse(str(_STATIC / name), media_type=media_type, headers={"Cache-Control": "no-cache"})
+def _json(value: Any) -> Response:
+    return Response(_dumps(value), media_type="application/json")
 
 
 def create_app(
@@ -61,66 +61,67 @@ def create_app(
     """The application over one run's ``hub``: live with a ``control``, or a finished ``run``."""
     app = FastAPI(title="botstage monitor", docs_url=None, redoc_url=None, openapi_url=None)
     expected = f"Bearer {token}".encode() if token else None
-    drawn: dict[str, bytes] = {}  # the map's image, drawn once
+    app.include_router(pages_router({"/": "monitor.html", "/display": "display.html"}))
+    app.include_router(run_router(hub, live=control is not None, token_required=expected is not None))
+    app.include_router(events_router(hub))
+    app.include_router(control_router(hub, control, expected))
+    app.include_router(robot_router(hub))
+    if run is not None:
+        app.include_router(replay_router(run))
+    return app
 
-    @app.get("/", include_in_schema=False)
-    def monitor_page() -> FileResponse:
-        return _static("monitor.html", "text/html")
 
-    @app.get("/display", include_in_schema=False)
-    def display_page() -> FileResponse:
-        return _static("display.html", "text/html")
+async def started(hub: Hub) -> None:
+    """Info and structure exist once the run is built: a page that came first waits a while."""
+    waited = 0.0
+    while not hub.ready.is_set():
+        if waited >= READY_WAIT_S:
+            raise HTTPException(503, "the run has not started yet", headers={"Retry-After": "1"})
+        await asyncio.sleep(PUSH_S)
+        waited += PUSH_S
 
-    @app.get("/static/{name}", include_in_schema=False)
-    def static(name: str) -> FileResponse:
-        if name not in {entry.name for entry in _STATIC.iterdir()}:  # only the files we ship
-            raise HTTPException(404, f"no file {name!r}")
-        return _static(name)
 
-    async def started() -> None:
-        """Info and structure exist once the run is built: a page that came first waits a while."""
-        waited = 0.0
-        while not hub.ready.is_set():
-            if waited >= READY_WAIT_S:
-                raise HTTPException(503, "the run has not started yet", headers={"Retry-After": "1"})
-            await asyncio.sleep(PUSH_S)
-            waited += PUSH_S
+def run_router(hub: Hub, *, live: bool, token_required: bool) -> APIRouter:
+    """What the run is and where it is: read-only, open to every viewer."""
+    router = APIRouter()
 
-    @app.get("/api/info")
+    @router.get("/api/info")
     async def info() -> dict[str, Any]:
-        await started()
-        return {
-            **hub.info,
-            "token_required": expected is not None,
-            "control": control is not None,
-            "map": hub.grid is not None,
-        }
+        await started(hub)
+        return {**hub.info, "token_required": token_required, "control": live, "map": hub.grid is not None}
 
-    @app.get("/api/structure")
+    @router.get("/api/structure")
     async def structure() -> Response:
-        await started()
-        return Response(_dumps(hub.structure), media_type="application/json")
+        await started(hub)
+        return _json(hub.structure)
 
-    @app.get("/api/snapshot")
+    @router.get("/api/snapshot")
     def snapshot() -> Response:
-        return Response(_dumps(hub.snapshot()), media_type="application/json")
+        return _json(hub.snapshot())
 
-    @app.get("/api/summary")
+    @router.get("/api/summary")
     def at_a_glance() -> dict[str, Any]:
         return summary(hub)
 
-    @app.get("/api/history")
+    @router.get("/api/history")
     def history(key: str) -> list[dict[str, Any]]:
         writes = hub.key_history(key)
         if writes is None:
             raise HTTPException(404, f"no key {key!r} was written")
         return writes
 
-    @app.get("/api/display")
+    @router.get("/api/display")
     def display() -> dict[str, Any]:
         return hub.current_layout()
 
-    @app.get("/api/events")
+    return router
+
+
+def events_router(hub: Hub) -> APIRouter:
+    """``/api/events``: what changed, as server-sent events, until the run ends."""
+    router = APIRouter()
+
+    @router.get("/api/events")
     async def events(request: Request, since: int | None = None, stamps: bool = False) -> StreamingResponse:
         start = hub.version if since is None else since
 
@@ -143,6 +144,13 @@ def create_app(
         headers = {"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
         return StreamingResponse(stream(), media_type="text/event-stream", headers=headers)
 
+    return router
+
+
+def control_router(hub: Hub, control: Control | None, expected: bytes | None) -> APIRouter:
+    """The requests that act on the run (``expected``: the ``Authorization`` header they need)."""
+    router = APIRouter()
+
     async def controlled(request: Request) -> tuple[Control, dict[str, Any]]:
         """The control and the request's JSON object, once the token and the run allow it."""
         if control is None:
@@ -150,7 +158,7 @@ def create_app(
         given = request.headers.get("authorization", "").encode()
         if expected is not None and not hmac.compare_digest(given, expected):
             raise HTTPException(401, "control needs the monitor's token", headers={"WWW-Authenticate": "Bearer"})
-        await started()  # what a request may name is known once the run is built
+        await started(hub)  # what a request may name is known once the run is built
         try:
             body = await request.json()
         except ValueError:
@@ -159,7 +167,7 @@ def create_app(
             raise HTTPException(400, "the body must be a JSON object")
         return control, body
 
-    @app.post("/api/control")
+    @router.post("/api/control")
     async def control_action(request: Request) -> JSONResponse:
         control, body = await controlled(request)
         try:
@@ -168,7 +176,7 @@ def create_app(
             raise HTTPException(422, str(exc)) from None
         return JSONResponse({"ok": True, "message": message})
 
-    @app.post("/api/teleop")
+    @router.post("/api/teleop")
     async def teleop(request: Request) -> JSONResponse:
         control, body = await controlled(request)
         try:
@@ -179,13 +187,21 @@ def create_app(
             raise HTTPException(409, str(exc)) from None
         return JSONResponse({"ok": True, "message": message})
 
-    @app.get("/api/map")
+    return router
+
+
+def robot_router(hub: Hub) -> APIRouter:
+    """Where the robot is and what it saw: the map, the photos the run took, the camera."""
+    router = APIRouter()
+    drawn: dict[str, bytes] = {}  # the map's image, drawn once
+
+    @router.get("/api/map")
     def map_meta() -> dict[str, Any]:
         if hub.grid is None:
             raise HTTPException(404, "this run has no map")
         return map_info(hub.grid)
 
-    @app.get("/api/map.png")
+    @router.get("/api/map.png")
     def map_image() -> Response:
         if hub.grid is None:
             raise HTTPException(404, "this run has no map")
@@ -193,7 +209,7 @@ def create_app(
             drawn["map.png"] = map_png(hub.grid)
         return Response(drawn["map.png"], media_type="image/png", headers={"Cache-Control": "max-age=3600"})
 
-    @app.get("/api/photo")
+    @router.get("/api/photo")
     def photo(file: str) -> FileResponse:
         """A photo the run took (``file`` as the photo skill gave it, relative to the run folder)."""
         folder = hub.folder
@@ -204,26 +220,31 @@ def create_app(
             raise HTTPException(404, f"no photo {file!r} in the run folder")
         return FileResponse(str(path), headers={"Cache-Control": "max-age=3600"})
 
-    @app.get("/api/camera.jpg")
+    @router.get("/api/camera.jpg")
     def camera() -> Response:
         jpeg, number = hub.camera
         if not number:
             raise HTTPException(404, "no camera frame (frames come while the robot is teleoperated)")
         return Response(jpeg, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
-    if run is not None:
+    return router
 
-        @app.get("/api/range")
-        def tick_range() -> dict[str, int]:
-            return {"first": run.first, "last": run.last}
 
-        @app.get("/api/at")
-        def at(tick: int) -> Response:
-            if not run.first <= tick <= run.last:
-                raise HTTPException(422, f"tick {tick} is outside the run ({run.first}..{run.last})")
-            return Response(_dumps(run.at(tick)), media_type="application/json")
+def replay_router(run: RecordedRun) -> APIRouter:
+    """A finished run's ticks, for the page's scrubber."""
+    router = APIRouter()
 
-    return app
+    @router.get("/api/range")
+    def tick_range() -> dict[str, int]:
+        return {"first": run.first, "last": run.last}
+
+    @router.get("/api/at")
+    def at(tick: int) -> Response:
+        if not run.first <= tick <= run.last:
+            raise HTTPException(422, f"tick {tick} is outside the run ({run.first}..{run.last})")
+        return _json(run.at(tick))
+
+    return router
 
 
 def token_for(host: str, token: str | None = None) -> str | None:

@@ -18,20 +18,20 @@ import hmac
 import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from importlib import resources
 from typing import Any
 from urllib.parse import urlsplit
 
 import httpx
-from botstage.missions.monitor.hub import Hub
 from fastapi import FastAPI, HTTPException, Request
-from fastapi.responses import FileResponse, RedirectResponse, Response, StreamingResponse
+from fastapi.responses import RedirectResponse, Response, StreamingResponse
 from starlette.background import BackgroundTask
+
+from botstage.missions.monitor.hub import Hub
+from botstage.missions.monitor.pages import pages_router
 
 SUMMARY_EVENTS = 8  # the newest timeline entries an overview card shows
 PROXY_TIMEOUT_S = 10.0
 _FORWARDED = ("authorization", "content-type", "accept", "last-event-id")
-_STATIC = resources.files("botstage.missions.monitor") / "static"
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
 ProcessesView = Callable[[], list[dict[str, Any]]]
@@ -187,16 +187,7 @@ def create_overview_app(
         raise ValueError(f"two sources have the same name: {names}")
     app = FastAPI(title="botstage monitor", docs_url=None, redoc_url=None, openapi_url=None)
 
-    @app.get("/", include_in_schema=False)
-    def overview_page() -> FileResponse:
-        page = str(_STATIC / "overview.html")
-        return FileResponse(page, media_type="text/html", headers={"Cache-Control": "no-cache"})
-
-    @app.get("/static/{name}", include_in_schema=False)
-    def static(name: str) -> FileResponse:
-        if name not in {entry.name for entry in _STATIC.iterdir()}:
-            raise HTTPException(404, f"no file {name!r}")
-        return FileResponse(str(_STATIC / name), headers={"Cache-Control": "no-cache"})
+    app.include_router(pages_router({"/": "overview.html"}))
 
     @app.get("/api/sources")
     def listed() -> dict[str, Any]:
