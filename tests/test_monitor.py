@@ -6,15 +6,16 @@ tested in headless Chromium in test_monitor_browser.py.)"""
 from __future__ import annotations
 
 import pytest
+from typer.testing import CliRunner
+
 from botstage.behaviors.trace import read_jsonl
 from botstage.missions.cli import app
 from botstage.missions.monitor.hub import HISTORY, TIMELINE, Hub
+from botstage.missions.monitor.pages import STATIC
 from botstage.missions.monitor.replay import RunFolderError, load_run
-from botstage.missions.monitor.server import MonitorError, start_monitor, token_for
+from botstage.missions.monitor.server import MonitorError, start_monitor, start_overview, token_for
 from botstage.missions.replay import from_trace
 from botstage.missions.scenario import load_scenario, run_scenario
-from typer.testing import CliRunner
-
 from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, replayed_run, wait_until
 
 PHOTO_MACHINE = "main/entertainer/interaction"
@@ -160,6 +161,40 @@ def test_listening_beyond_loopback_needs_a_token(monkeypatch) -> None:
     assert token_for("127.0.0.1") is None
     monkeypatch.setenv("BOTSTAGE_MONITOR_TOKEN", "from-env")
     assert token_for("0.0.0.0") == "from-env"
+
+
+def test_the_pages_load_every_module_they_ship_as_javascript() -> None:
+    """No build step: each page's scripts and the ES modules they import are the files served,
+    each as JavaScript (a browser refuses a module script of any other type), none left over."""
+    import re
+
+    import httpx
+
+    def scripts(http: httpx.Client, page: str) -> list[str]:
+        answer = http.get(page)
+        assert answer.status_code == 200, page
+        return re.findall(r'<script[^>]* src="static/([^"]+)"', answer.text)
+
+    monitor, overview = start_monitor(Hub(), port=0), start_overview([], port=0)
+    reached: set[str] = set()
+    try:
+        with httpx.Client(base_url=monitor.url) as http, httpx.Client(base_url=overview.url) as overview_http:
+            queue = [(http, name) for page in ("/", "/display") for name in scripts(http, page)]
+            queue += [(overview_http, name) for name in scripts(overview_http, "/")]
+            while queue:
+                client, name = queue.pop()
+                answer = client.get(f"/static/{name}")
+                assert answer.status_code == 200, name
+                assert answer.headers["content-type"].startswith("text/javascript"), (name, answer.headers)
+                reached.add(name)
+                imports = re.findall(r'^import [^;]* from "\./([^"]+)";$', answer.text, flags=re.M)
+                queue += [(client, imported) for imported in imports if imported not in reached]
+    finally:
+        monitor.stop()
+        overview.stop()
+    shipped = {path.name for path in STATIC.iterdir() if path.name.endswith(".js")}
+    assert reached == shipped
+    assert {"monitor.js", "tree.js", "stream.js", "util.js"} <= reached
 
 
 def test_a_finished_run_at_tick_n_is_what_botstage_tree_prints(tmp_path) -> None:
@@ -333,6 +368,7 @@ def test_a_finished_run_shows_the_robot_where_it_was_at_each_tick_and_the_monito
     against the same run without it); a replay serves the map and the poses at the scrubbed tick;
     a run made without the monitor replays with the simulation's true path."""
     import httpx
+
     from botstage.missions.monitor.robot_view import read_poses
     from botstage.missions.runner import run
 
