@@ -90,6 +90,6 @@ def test_only_runs_the_benches_named() -> None:
     rows = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
     assert [row["bench"] for row in rows] == ["skill_call"], done.stdout[-3000:] + done.stderr[-3000:]
     refused = subprocess.run(
-        [*command[:5], "--only", "nope"], cwd=ROOT, capture_output=True, text=True, timeout=600, check=False
+        [*command[:4], "--only", "nope"], cwd=ROOT, capture_output=True, text=True, timeout=600, check=False
     )
     assert refused.returncode != 0 and "unknown bench nope" in refused.stderr
