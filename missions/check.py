@@ -56,6 +56,14 @@ class Checked:
     # what it was checked with: whatever builds it next (the run, its report, pictures) uses the same
     registry: Registry | None = None
     kinds: NodeKinds | None = None
+    # what checking loaded, for the run to use rather than load again: the robot's profile (and
+    # where its keys are written) and the world's map with its places
+    profile: Profile | None = None
+    profile_locations: Locations | None = None
+    grid: GridMap | None = None
+    # what runs, built on the engine the run gave (``check(engine_for=...)``): built once, here
+    root: py_trees.behaviour.Behaviour | None = None
+    picture: Item | None = None  # what it looks like, described before anything ticks
 
     @property
     def ok(self) -> bool:
@@ -83,15 +91,22 @@ def check(
     registry: Registry | None = None,
     kinds: NodeKinds | None = None,
     include_dirs: Iterable[str | Path] = (),
+    engine_for: Callable[[Mission, Registry, NodeKinds], Engine] | None = None,
 ) -> Checked:
     """Load and check a mission file; never raises for a bad mission.
 
     ``include_dirs``: folders its includes may come from besides its own folder tree and the
     built-in library (see ``botstage.missions.loader.load``). A bug in the checker itself is reported as
     a located problem too (and asks to be reported), never as a traceback in the user's face.
+    ``engine_for(mission, registry, kinds)``: the engine a run will tick; what runs is built on it and kept as
+    ``Checked.root`` (else a throwaway engine checks it), so a run builds its tree once.
     """
     path = Path(path)
-    return _safely(path, Location(str(path), 1, 1), lambda: _check(load(path, include_dirs), path, registry, kinds))
+    return _safely(
+        path,
+        Location(str(path), 1, 1),
+        lambda: _check(load(path, include_dirs), path, registry, kinds, engine_for),
+    )
 
 
 def check_loaded(
@@ -129,7 +144,13 @@ def _collection_paused() -> Iterator[None]:
             gc.enable()
 
 
-def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKinds | None) -> Checked:
+def _check(
+    loaded: Loaded,
+    path: Path,
+    registry: Registry | None,
+    kinds: NodeKinds | None,
+    engine_for: Callable[[Mission, Registry, NodeKinds], Engine] | None = None,
+) -> Checked:
     out = _Collector(loaded)
     if loaded.data is None:
         return Checked(path, loaded, None, out.result())
@@ -140,23 +161,32 @@ def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKin
     kinds = kinds or NodeKinds.default(mission.nodes)
     checked = Checked(path, loaded, mission, [], registry=registry, kinds=kinds)
     _check_keys(mission, checked, out)
-    _check_robot(mission, path, registry, out)
+    _check_robot(mission, path, registry, checked, out)
     params = _check_skill_params(mission, registry, out)
-    engine = Engine(clock=SimClock(mission.rate_hz), registry=registry, seed=mission.seed, kinds=kinds)
+    run_engine = engine_for(mission, registry, kinds) if engine_for is not None and not out.problems else None
+    engine = run_engine or _throwaway_engine(mission, registry, kinds)
     try:
         builder = engine.builder(mission.trees, mission.machines, params)
         root_path = _root_spec_path(mission, out)
         if root_path is not None:
-            _build(builder, mission, root_path, out)
+            root = _build(builder, mission, root_path, out)
             _check_machines(builder.plans, out)
             _check_usages(builder.usages, mission, checked, out)
             checked.keys_used = {u.key for u in builder.usages}
             checked.skills_used = {
                 name: [out.loaded.locations.find(p) for p in paths] for name, paths in builder.skills_used.items()
             }
-        # every named tree and machine is checked on its own too, used or not: once (a chain of
-        # a thousand subtrees is built once, not once from each of its links)
-        alone = engine.builder(mission.trees, mission.machines, params)
+            if run_engine is not None and root is not None:
+                checked.root, checked.picture = root, describe(root)
+    finally:
+        if run_engine is None:
+            engine.close()
+    # every named tree and machine is checked on its own too, used or not: once (a chain of
+    # a thousand subtrees is built once, not once from each of its links), on an engine of its
+    # own (what does not run is not built on the run's)
+    apart = _throwaway_engine(mission, registry, kinds)
+    try:
+        alone = apart.builder(mission.trees, mission.machines, params)
         built = set(builder.entered) | ({root_path} if root_path is not None else set())
         for section, names in (("trees", mission.trees), ("machines", mission.machines)):
             for name in names:
@@ -164,9 +194,13 @@ def _check(loaded: Loaded, path: Path, registry: Registry | None, kinds: NodeKin
                     _build(alone, mission, (section, name), out)
         _check_machines(alone.plans, out)
     finally:
-        engine.close()
+        apart.close()
     checked.problems = out.result()
     return checked
+
+
+def _throwaway_engine(mission: Mission, registry: Registry, kinds: NodeKinds) -> Engine:
+    return Engine(clock=SimClock(mission.rate_hz), registry=registry, seed=mission.seed, kinds=kinds)
 
 
 def _validate_top_level(data: dict[str, Any], out: _Collector) -> Mission:
@@ -237,7 +271,7 @@ def check_write(key: Any, value: Any, key_types: dict[str, Any]) -> tuple[str | 
     return rel, declared, ""
 
 
-def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collector) -> None:
+def _check_robot(mission: Mission, path: Path, registry: Registry, checked: Checked, out: _Collector) -> None:
     from botstage.robots.profile import known_profiles, load_profile, profile_path
 
     if mission.robot is not None:
@@ -252,6 +286,7 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
         else:
             profile, problems, loaded = load_profile(found)
             out.problems.extend(problems)
+            checked.profile, checked.profile_locations = profile, loaded.locations
             if profile is not None:
                 _check_backend_sections(profile, loaded.locations, out)
                 for skill, params in profile.skills.items():
@@ -271,7 +306,7 @@ def _check_robot(mission: Mission, path: Path, registry: Registry, out: _Collect
     elif mission.walks and mission.world is None:
         out.at(("walks",), "walking people need a world to walk in")
     elif mission.world is not None:
-        _check_world(mission, path, out)
+        checked.grid = _check_world(mission, path, out)
 
 
 def _check_backend_sections(profile: Profile, locations: Locations, out: _Collector) -> None:
@@ -323,7 +358,8 @@ def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
                 )
 
 
-def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
+def _check_world(mission: Mission, path: Path, out: _Collector) -> GridMap | None:
+    """The world's problems; its map, if it loads."""
     from botstage.robots.gridmap import MapError, known_maps, load, map_path
 
     assert mission.world is not None
@@ -334,12 +370,12 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
             f"unknown world {mission.world!r}",
             did_you_mean(mission.world, known_maps()) or "shipped maps: " + ", ".join(known_maps()),
         )
-        return
+        return None
     try:
         grid = load(found)
     except MapError as exc:
         out.at(("world",), f"the map cannot be loaded: {exc}")
-        return
+        return None
     for index, gathering in enumerate(mission.gatherings):
         where = ("gatherings", index, "at")
         if isinstance(gathering.at, str):
@@ -357,7 +393,7 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
     if start is None:
         if not grid.places:
             out.at(("world",), "say where the robot starts with `start:` (this map has no named places)")
-        return
+        return grid
     if isinstance(start, str):
         if start not in grid.places:
             out.at(
@@ -369,6 +405,7 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> None:
         out.at(("start",), "a start pose is [x, y] or [x, y, yaw]")
     elif not grid.is_free(start[0], start[1]):
         out.at(("start",), f"({start[0]:g}, {start[1]:g}) is not free floor on the map")
+    return grid
 
 
 def start_pose(mission: Mission, places: dict[str, tuple[float, float, float]]) -> tuple[float, float, float]:
@@ -451,12 +488,15 @@ def describe_part(checked: Checked, spec_path: SpecPath | None = None) -> Item:
         engine.close()
 
 
-def _build(builder: Builder, mission: Mission, spec_path: SpecPath, out: _Collector) -> None:
+def _build(
+    builder: Builder, mission: Mission, spec_path: SpecPath, out: _Collector
+) -> py_trees.behaviour.Behaviour | None:
     try:
-        build_root(builder, mission, spec_path)
+        return build_root(builder, mission, spec_path)
     except SpecError as exc:
         for problem in exc.problems:
             out.at(problem.path, problem.message, problem.hint)
+        return None
 
 
 def _check_machines(plans: Iterable[MachinePlan], out: _Collector) -> None:

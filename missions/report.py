@@ -180,9 +180,11 @@ def trajectory_map(folder: Path, checked: Checked) -> str:
 
     from botstage.robots.gridmap import FREE, OCCUPIED, load, map_path
 
-    found = map_path(mission.world, checked.path.parent)
-    assert found is not None
-    grid = load(found)
+    grid = checked.grid  # the run's, loaded when it was checked; read again for a report of a run folder
+    if grid is None:
+        found = map_path(mission.world, checked.path.parent)
+        assert found is not None
+        grid = load(found)
     points = np.loadtxt(trajectory, delimiter=",", skiprows=1, ndmin=2)
     shade = np.where(grid.data == OCCUPIED, 0.0, np.where(grid.data == FREE, 1.0, 0.75))
     ox, oy, _ = grid.origin
@@ -340,8 +342,8 @@ def layouts_section(folder: Path) -> str:
 
 def pictures(checked: Checked) -> str:
     """The mission's picture, built with the skills and kinds it was checked with (a scenario's
-    mocks, ones registered in code)."""
-    item = describe_part(checked)
+    mocks, ones registered in code): the run's own, described before its first tick, if it has one."""
+    item = checked.picture or describe_part(checked)
     try:
         svg = graphviz(to_dot(item), "svg").decode()
         svg = svg[svg.index("<svg") :]  # drop the XML prologue and doctype: inline in HTML

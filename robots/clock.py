@@ -119,6 +119,15 @@ class WallClock:
     def period(self) -> float:
         return self._period
 
+    def restart(self) -> None:
+        """Mission time starts again from 0 now (a run made its clock before connecting to the
+        robot; what was built on this clock keeps it). Only before the first tick."""
+        if self.ticks:
+            raise RuntimeError("a clock that has ticked cannot start again")
+        self._origin = self._monotonic()
+        self._deadline = self._origin + self._period
+        self._held_at = None
+
     def now(self) -> float:
         at = self._held_at if self._held_at is not None else self._monotonic()
         return at - self._origin

@@ -17,8 +17,8 @@ from botstage.missions.session.plugins import PluginRegistry
 from botstage.missions.session.services import RobotService
 
 ROOT = Path(__file__).resolve().parent.parent
-HELLO = ROOT / "missions" / "hello.yaml"
-DRIVE_DEMO = ROOT / "missions" / "drive_demo.yaml"
+HELLO = ROOT / "missions" / "examples" / "hello.yaml"
+DRIVE_DEMO = ROOT / "missions" / "examples" / "drive_demo.yaml"
 
 
 class Recorder:
@@ -177,13 +177,12 @@ def test_a_service_gives_an_interface_and_runs_after_the_robot_services(tmp_path
     session = RunSession(DRIVE_DEMO, until=2, out=tmp_path, services=services)
     result = session.run()
     assert session.engine is not None and session.engine.interfaces["beacon"] is session.services[-1]
-    assert list(session.interfaces)[-7:] == [
+    assert list(session.interfaces)[-6:] == [  # no plug-in sets' services (gallery, gesture) here
         "localization",
         "navigation",
         "uploads",
         "files",
         "orders",
-        "gesture",
         "beacon",
     ]
     assert result.summary["beacon"] == {"ticks": result.summary["ticks"], "closed": True}
@@ -195,7 +194,8 @@ def test_a_robot_less_mission_has_no_robot_services(tmp_path: Path) -> None:
     session = RunSession(HELLO, until=1, out=tmp_path)
     session.run()
     assert session.backend is None
-    assert list(session.interfaces) == ["uploads", "files", "orders", "gesture"]
+    # the core's services, then the plug-in sets' (the web set's gallery, the hardware set's glove)
+    assert list(session.interfaces) == ["uploads", "files", "orders", "gallery_server", "gesture"]
 
 
 def test_plugin_registries_record_broken_entries(monkeypatch: pytest.MonkeyPatch) -> None:

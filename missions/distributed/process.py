@@ -407,8 +407,10 @@ MISSION_ONLY_SERVICES = frozenset({"robot"})
 def _session_services(folder: Path, clock: Any, seed: int, backend: Any) -> tuple[list[Any], dict[str, Any], Any]:
     """The run services a skills process offers (files, uploads, orders, plug-ins'), opened."""
     services = service_registry()
-    session = SimpleNamespace(folder=folder, clock=clock, seed=seed, backend=backend)
-    opened, interfaces = [], dict(backend.devices) if backend is not None else {}
+    interfaces: dict[str, Any] = dict(backend.devices) if backend is not None else {}
+    # what a service reads of its session; `interfaces` filled as the services open, as a run's
+    session = SimpleNamespace(folder=folder, clock=clock, seed=seed, backend=backend, interfaces=interfaces)
+    opened = []
     for name in services:
         if name in MISSION_ONLY_SERVICES:
             continue

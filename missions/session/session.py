@@ -46,11 +46,10 @@ from botstage.robots.backend import Backend, BackendError, BackendKind, BackendO
 from botstage.robots.backend_options import OptionSources, resolve
 from botstage.robots.backend_registry import DEFAULT, BackendRegistry, open_kind
 from botstage.robots.clock import Clock, SimClock, WallClock
-from botstage.robots.gridmap import GridMap, known_maps, map_path
-from botstage.robots.gridmap import load as load_map
+from botstage.robots.gridmap import GridMap, known_maps
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.located_yaml import Locations, Problem
-from botstage.robots.profile import Profile, load_profile, profile_path
+from botstage.robots.profile import Profile
 from botstage.skills.registry import Registry
 
 DONE = (Status.SUCCESS, Status.FAILURE)
@@ -170,23 +169,25 @@ class RunSession:
         return self.write_results()
 
     def check(self) -> None:
-        """The mission, the backend and its options: every refusal comes before anything moves."""
-        checked = check(self.path, self.registry, self.kinds)
-        if not checked.ok:
-            raise MissionInvalid(checked.problems)
-        self.checked = checked
-        mission = self.mission
+        """The mission, the backend and its options: every refusal comes before anything moves.
+        What runs is built here, once, on the engine the run ticks (``_engine_for``)."""
         try:
             self.kind = self.backends.get(self.backend_name)
         except BackendError as exc:
             raise RunError(exc.message) from None
+        checked = check(self.path, self.registry, self.kinds, engine_for=self._engine_for)
+        if not checked.ok:
+            if self.engine is not None:
+                self.engine.close()
+                self.engine = None
+            raise MissionInvalid(checked.problems)
+        self.checked = checked
+        mission = self.mission
         if not self.kind.simulated and mission.robot is None:
             raise RunError(
                 f"mission {mission.name!r} names no robot: there is no hardware to drive "
                 f"(run it on the simulator: --backend {DEFAULT})"
             )
-        self.seed = mission.seed if self._seed is None else self._seed
-        self.until = mission.until if self._until is None else self._until
         self._robot = self._place_robot()
         profile, locations = (self._robot[0], self._robot[1]) if self._robot is not None else (None, None)
         if profile is not None and locations is not None:
@@ -195,6 +196,23 @@ class RunSession:
             self.options = resolve(self.kind, profile, locations, self.given)
         except BackendError as exc:
             raise RunError(exc.message, exc.problems) from None
+
+    def _engine_for(self, mission: Mission, registry: Registry, kinds: NodeKinds) -> Engine:
+        """The engine this run ticks, made as soon as the mission's rate and seed are known: its
+        clock (simulated, or the wall's, which starts again once the robot is open), its seed,
+        and the interfaces dict the services fill later. Its trace is attached in ``build``."""
+        self.seed = mission.seed if self._seed is None else self._seed
+        self.until = mission.until if self._until is None else self._until
+        rate = mission.rate_hz
+        self.clock = WallClock(rate) if self.realtime or not self.kind.simulated else SimClock(rate)
+        self.engine = Engine(
+            clock=self.clock,
+            seed=self.seed,
+            registry=registry,
+            kinds=kinds,
+        )
+        self.engine.interfaces = self.interfaces
+        return self.engine
 
     def _check_profile_backends(self, profile: Profile, locations: Locations) -> None:
         """The profile's `backends:` sections name installed backends: a misspelt one would be ignored."""
@@ -218,30 +236,24 @@ class RunSession:
                 f"mission {mission.name!r} names robot {mission.robot!r} but no world: the simulator needs "
                 f"one (`world:` a shipped map: {', '.join(known_maps())}, or a map YAML)"
             )
-        here = self.checked.path.parent
-        profile, _, loaded = load_profile(profile_path(mission.robot, here))  # type: ignore[arg-type]
-        assert profile is not None
-        grid = load_map(map_path(mission.world, here))  # type: ignore[arg-type]
+        profile, locations, grid = self.checked.profile, self.checked.profile_locations, self.checked.grid
+        assert profile is not None and locations is not None and grid is not None  # a valid mission's
         x, y, theta = start_pose(mission, grid.places)
-        return profile, loaded.locations, grid, Pose2D(x, y, theta)
+        return profile, locations, grid, Pose2D(x, y, theta)
 
     def open_backend(self) -> None:
-        """The run folder and the clock; then the robot, if the mission has one."""
-        rate = self.mission.rate_hz
+        """The run folder; then the robot, if the mission has one. Mission time starts after."""
         self.folder = run_folder(self.mission.name, self.out)
-        self.clock = WallClock(rate) if self.realtime or not self.kind.simulated else SimClock(rate)
         self.started_at = time.perf_counter()
         self._sink = (self.folder / "trace.jsonl").open("w", encoding="utf-8")
-        if self._robot is None:
-            return
-        try:
-            self.backend = open_kind(self.kind, self._request(), self.options)
-        except BackendError as exc:
-            self._sink.close()
-            raise RunError(exc.message, exc.problems) from None
-        if not self.kind.simulated:  # connecting took a while: mission time starts now
-            self.clock = WallClock(rate)
-            self.backend.use_clock(self.clock)
+        if self._robot is not None:
+            try:
+                self.backend = open_kind(self.kind, self._request(), self.options)
+            except BackendError as exc:
+                self._sink.close()
+                raise RunError(exc.message, exc.problems) from None
+        if isinstance(self.clock, WallClock):  # connecting took a while: mission time starts now
+            self.clock.restart()
 
     def robot_request(self, clock: Clock) -> OpenRequest | None:
         """What opening the mission's robot takes, on ``clock``: for a robot served by another
@@ -279,7 +291,9 @@ class RunSession:
 
     def open_services(self) -> None:
         """The interfaces skills get: the backend's devices, then each service's, in order."""
-        self.interfaces = dict(self.backend.devices) if self.backend is not None else {}
+        self.interfaces.clear()  # the engine's own dict: what runs was built holding it
+        if self.backend is not None:
+            self.interfaces.update(self.backend.devices)
         for service in self.services:
             try:
                 given = service.open(self)
@@ -292,18 +306,14 @@ class RunSession:
             self.interfaces.update(given)
 
     def build(self) -> None:
-        """The trace (observers subscribed), the engine, and what the mission runs."""
+        """The trace (observers subscribed) on the engine, the mission's keys and initial values;
+        what runs was built when the mission was checked, on this engine."""
+        assert self.engine is not None and self.checked.root is not None
         self.trace = Trace(self.clock, self._sink, keep=False)
         self.hooks.subscribe(self.trace)
-        self.engine = Engine(
-            clock=self.clock,
-            seed=self.seed,
-            trace=self.trace,
-            registry=self.checked.registry,
-            kinds=self.checked.kinds,
-            interfaces=self.interfaces,
-        )
-        self.root = build(self.engine, self.checked, self.overrides)
+        self.engine.trace = self.engine.blackboard.trace = self.trace
+        initialise(self.engine, self.checked, self.overrides)
+        self.root = self.checked.root
         self.engine.set_root(self.root)
         self.hooks.run("started", self)
 
@@ -395,7 +405,17 @@ def _point(grid: GridMap, point: str | list[float]) -> tuple[float, float]:
 
 
 def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> py_trees.behaviour.Behaviour:
-    """Declare the mission's keys, set its initial values and build what runs."""
+    """Declare the mission's keys, set its initial values and build what runs (for a caller that
+    checked the mission on a throwaway engine; a run builds on its own once, when checking)."""
+    mission = checked.mission
+    assert mission is not None
+    initialise(engine, checked, overrides)
+    builder = engine.builder(mission.trees, mission.machines, mission.skill_params)
+    return build_root(builder, mission, root_spec_path(mission))
+
+
+def initialise(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = None) -> None:
+    """Declare the mission's keys and set their initial values (the trace's first events)."""
     mission = checked.mission
     assert mission is not None
     for key, tp in checked.key_types.items():
@@ -404,8 +424,6 @@ def build(engine: Engine, checked: Checked, overrides: dict[str, Any] | None = N
         engine.blackboard.set(key, value, writer="init")
     for key, value in {**mission.blackboard, **(overrides or {})}.items():
         engine.blackboard.set(key, value, writer="init")
-    builder = engine.builder(mission.trees, mission.machines, mission.skill_params)
-    return build_root(builder, mission, root_spec_path(mission))
 
 
 def run_folder(name: str, out: Path | None) -> Path:
