@@ -3,4 +3,5 @@
 from pathlib import Path
 
 MISSIONS_DIR = Path(__file__).resolve().parent
-DEFAULT_MISSION = MISSIONS_DIR / "peoplebot_entertainer.yaml"
+EXAMPLES_DIR = MISSIONS_DIR / "examples"  # the shipped missions
+DEFAULT_MISSION = EXAMPLES_DIR / "peoplebot_entertainer.yaml"

@@ -2,7 +2,7 @@
 
 A scenario file (YAML, usually `missions/scenarios/<mission>/<name>.yaml`)::
 
-    mission: ../../hello.yaml          # relative to the scenario file
+    mission: ../../examples/hello.yaml # relative to the scenario file
     seed: 7
     until: 60
     mocks:

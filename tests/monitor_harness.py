@@ -20,7 +20,7 @@ from botstage.missions.monitor.server import start_monitor
 from botstage.missions.runner import RunResult, run
 
 ROOT = Path(__file__).resolve().parent.parent
-ENTERTAINER = ROOT / "missions" / "peoplebot_entertainer.yaml"
+ENTERTAINER = ROOT / "missions" / "examples" / "peoplebot_entertainer.yaml"
 LISTENING = "main/entertainer/near_com/listening"
 
 

@@ -295,7 +295,7 @@ def test_to_yaml_is_a_mission_file_that_loads_back(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     "path",
-    sorted(Path("missions").glob("*.yaml")) + sorted(Path("missions/lib").glob("*.yaml")) + [TWIN],
+    sorted(Path("missions/examples").glob("*.yaml")) + sorted(Path("missions/lib").glob("*.yaml")),
     ids=lambda p: p.stem,
 )
 def test_every_shipped_mission_loads_into_the_api_unchanged(path: Path, tmp_path: Path) -> None:
@@ -308,7 +308,7 @@ def test_every_shipped_mission_loads_into_the_api_unchanged(path: Path, tmp_path
 
 
 def test_trees_and_machines_of_a_file_are_the_apis_objects() -> None:
-    mission = Mission.from_yaml("missions/hello.yaml")
+    mission = Mission.from_yaml("missions/examples/hello.yaml")
     assert isinstance(mission.machine, StateMachine)
     assert isinstance(mission.trees["patrol"], ReactiveSequence)
     assert isinstance(mission.trees["patrol"].children[1], Timeout)

@@ -55,7 +55,7 @@ from tests.test_ros2_interop import listening_node
 
 ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENT = ROOT / "missions" / "deployments" / "bittle_pi_pc.yaml"
-PATROL = ROOT / "missions" / "bittle_patrol.yaml"
+PATROL = ROOT / "missions" / "examples" / "bittle_patrol.yaml"
 SEED, UNTIL = 2, 12.0  # with this seed a guest steps into Bittle's way at 7.2 s, after its first leg
 FAILSAFE_S = 120.0  # a bound for what must happen, never a measure
 WATCHDOG_S = 0.5  # bittle's control.watchdog_s

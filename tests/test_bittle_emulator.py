@@ -114,10 +114,16 @@ def test_a_replugged_board_gets_the_gait_again(backend: EmulatorBackend) -> None
 
 
 def test_the_patrol_mission_runs_over_the_emulator(tmp_path: Path) -> None:
-    """`botstage run missions/bittle_patrol.yaml --backend emulator`: the mission's walk reaches the
+    """`botstage run missions/examples/bittle_patrol.yaml --backend emulator`: the mission's walk reaches the
     board as gait tokens and the simulated body walks (a few seconds of it, in real time)."""
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "botstage.missions.cli", "run", str(ROOT / "missions" / "bittle_patrol.yaml")]
+    command = [
+        sys.executable,
+        "-m",
+        "botstage.missions.cli",
+        "run",
+        str(ROOT / "missions" / "examples" / "bittle_patrol.yaml"),
+    ]
     command += ["--backend", "emulator", "--until", "6", "--out", str(out)]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]

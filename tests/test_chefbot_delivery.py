@@ -24,7 +24,7 @@ from botstage.missions.runner import RunResult, run
 from botstage.robots.gridmap import load
 
 ROOT = Path(__file__).resolve().parent.parent
-MISSION = ROOT / "missions/chefbot_delivery.yaml"
+MISSION = ROOT / "missions/examples/chefbot_delivery.yaml"
 PLACES = load(ROOT / "robots/maps/restaurant.yaml").places
 
 

@@ -26,7 +26,7 @@ def bench(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-HELLO = str(ROOT / "missions" / "hello.yaml")
+HELLO = str(ROOT / "missions" / "examples" / "hello.yaml")
 
 
 def test_run_a_mission_writes_a_run_folder(tmp_path: Path) -> None:

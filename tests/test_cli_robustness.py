@@ -25,7 +25,7 @@ from botstage.robots.places import robot_place
 from botstage.robots.sim.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
-HELLO = str(ROOT / "missions" / "hello.yaml")
+HELLO = str(ROOT / "missions" / "examples" / "hello.yaml")
 FAILSAFE_S = 120.0  # a bound for a process that should have ended long before; never a measurement
 
 

@@ -23,7 +23,7 @@ from botstage.missions.cli.verbs import GROUP, Verb, summary
 from tests.tools import install_wheel
 
 ROOT = Path(__file__).resolve().parent.parent
-HELLO = str(ROOT / "missions" / "hello.yaml")
+HELLO = str(ROOT / "missions" / "examples" / "hello.yaml")
 
 # the plug-in sets' packages: never imported to list the verbs or to validate a mission
 SETS = ("zenoh", "fastapi", "uvicorn", "zmq", "onnxruntime", "serial", "dynamixel_sdk", "pocketsphinx", "rosbags")

@@ -28,7 +28,12 @@ def test_a_simulated_run_publishes_its_time_on_clock(tmp_path: Path) -> None:
         while not mission_node.graph().endpoints(CLOCK_TOPIC, EntityKind.SUBSCRIPTION):  # the watcher is matched
             assert time.monotonic() < deadline, "the watcher's subscription never reached the mission's node"
             pace.wait(0.05)
-        run(ROOT / "missions" / "hello.yaml", until=3.0, out=tmp_path / "run", observers=[ClockPublisher(mission_node)])
+        run(
+            ROOT / "missions" / "examples" / "hello.yaml",
+            until=3.0,
+            out=tmp_path / "run",
+            observers=[ClockPublisher(mission_node)],
+        )
         seen = [times.get(timeout=FAILSAFE_S)]
         while len(seen) < 31:
             try:

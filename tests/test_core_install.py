@@ -29,9 +29,9 @@ RUN_IN_PROCESS = f"""
 import sys
 from botstage.missions.check import check
 from botstage.missions.runner import run
-checked = check({str(ROOT / "missions" / "hello.yaml")!r})
+checked = check({str(ROOT / "missions" / "examples" / "hello.yaml")!r})
 assert checked.ok, checked.problems
-result = run({str(ROOT / "missions" / "hello.yaml")!r}, out=__import__("pathlib").Path(sys.argv[1]))
+result = run({str(ROOT / "missions" / "examples" / "hello.yaml")!r}, out=__import__("pathlib").Path(sys.argv[1]))
 print("outcome", result.outcome)
 print("imported", sorted(m for m in {SET_PACKAGES!r} if m in sys.modules))
 """
@@ -69,7 +69,7 @@ def test_no_plugin_set_package_is_installed(core: Path) -> None:
 
 def test_validate_and_run_hello(core: Path, tmp_path: Path) -> None:
     botstage = str(core / "bin" / "botstage")
-    hello = str(ROOT / "missions" / "hello.yaml")
+    hello = str(ROOT / "missions" / "examples" / "hello.yaml")
     checked = subprocess.run([botstage, "validate", hello], capture_output=True, text=True, timeout=120)
     assert checked.returncode == 0, checked.stdout + checked.stderr
     ran = subprocess.run(

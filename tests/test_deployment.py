@@ -10,7 +10,7 @@ from botstage.missions.deployment import check_deployment
 
 ROOT = Path(__file__).resolve().parent.parent
 FIVE = ROOT / "missions" / "deployments" / "peoplebot_five_computers.yaml"
-MISSION = ROOT / "missions" / "peoplebot_entertainer.yaml"
+MISSION = ROOT / "missions" / "examples" / "peoplebot_entertainer.yaml"
 
 BASE = f"""name: d
 mission: {MISSION}

@@ -48,7 +48,7 @@ def test_five_processes_leave_the_one_process_trace(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     for process in ("navigation_computer", "robot_computer", "kinect_speech_computer", "upload_computer"):
         assert f"{process} " in done.stdout  # each one's log and state are shown, by name
-    run(ROOT / "missions" / "peoplebot_entertainer.yaml", seed=SEED, until=UNTIL, out=tmp_path / "one")
+    run(ROOT / "missions" / "examples" / "peoplebot_entertainer.yaml", seed=SEED, until=UNTIL, out=tmp_path / "one")
     five, one = (json.loads((tmp_path / r / "summary.json").read_text()) for r in ("five", "one"))
     assert five["counters"] == one["counters"]
     assert 0 < five["lockstep"]["steps"] < five["lockstep"]["skipped"]  # resting processes were not asked

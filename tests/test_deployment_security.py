@@ -105,7 +105,7 @@ def test_command_topics_are_named_as_the_robot_process_names_them(tmp_path: Path
     assert "  topics: {}" in profile
     profile = profile.replace("  topics: {}", "  topics: {pan: ~/pan_goal}")
     (tmp_path / "tracker.yaml").write_text(profile)
-    mission = ROOT / "missions" / "face_tracker.yaml"
+    mission = ROOT / "missions" / "examples" / "face_tracker.yaml"
     text = mission.read_text()
     assert "robot: face_tracker" in text
     (tmp_path / "mission.yaml").write_text(text.replace("robot: face_tracker", "robot: tracker.yaml"))
@@ -130,8 +130,8 @@ def test_operator_is_no_process_name(tmp_path: Path) -> None:
 
 
 def test_a_process_that_runs_neither_mission_nor_skills_may_not_call_devices(tmp_path: Path) -> None:
-    entertainer = FIVE.parent.parent / "peoplebot_entertainer.yaml"
-    text = FIVE.read_text().replace("mission: ../peoplebot_entertainer.yaml", f"mission: {entertainer}")
+    entertainer = FIVE.parent.parent / "examples" / "peoplebot_entertainer.yaml"
+    text = FIVE.read_text().replace("mission: ../examples/peoplebot_entertainer.yaml", f"mission: {entertainer}")
     text += "  wall_screen:\n    description: shows the run\n"
     path = tmp_path / "six.yaml"
     path.write_text(text)

@@ -309,9 +309,13 @@ DRILLS = [
     Drill("from-trace of /dev/zero", ["scenario", "from-trace", "/dev/zero", "-o", "s.yaml"], exit=(1, 2)),
     Drill("places of /dev/zero", ["places", "/dev/zero"], exit=(1, 2)),
     Drill("an unknown map", ["places", "atlantis"], exit=2, says="atlantis"),
-    Drill("machine -f json", ["machine", str(ROOT / "missions/peoplebot_entertainer.yaml"), "-f", "json"], exit=0),
     Drill(
-        "machine -f unicode", ["machine", str(ROOT / "missions/peoplebot_entertainer.yaml"), "-f", "unicode"], exit=0
+        "machine -f json", ["machine", str(ROOT / "missions/examples/peoplebot_entertainer.yaml"), "-f", "json"], exit=0
+    ),
+    Drill(
+        "machine -f unicode",
+        ["machine", str(ROOT / "missions/examples/peoplebot_entertainer.yaml"), "-f", "unicode"],
+        exit=0,
     ),
     Drill("speech on a text file", ["speech", "recognize", "a.wav"], {"a.wav": "not audio"}, exit=(1, 2), says="a.wav"),
 ]

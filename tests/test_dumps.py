@@ -15,7 +15,7 @@ from botstage.behaviors.render import FORMATS
 from tests.test_cli import botstage
 from tests.tools import require
 
-MISSIONS = sorted(Path("missions").glob("*.yaml"))
+MISSIONS = sorted(Path("missions/examples").glob("*.yaml"))
 
 
 def parse_png(data: bytes) -> tuple[int, int]:
@@ -78,16 +78,16 @@ def test_machine_in_every_format(tmp_path: Path, mission: Path, fmt: str) -> Non
 
 
 def test_a_machine_with_trees_is_one_picture_of_clusters() -> None:
-    dot = botstage("machine", "missions/hello.yaml", "--format", "dot").stdout
+    dot = botstage("machine", "missions/examples/hello.yaml", "--format", "dot").stdout
     assert dot.count("subgraph cluster_") == 6  # machine, 2 states, nested machine, 2 nested states
     assert 'label="wait\\nduration=2.0"' in dot
     assert 'label="success"' in dot and 'label="preempt: estop"' in dot
 
 
 def test_machine_of_a_mission_without_one_draws_its_tree() -> None:
-    result = botstage("machine", "missions/tree_demo.yaml")
+    result = botstage("machine", "missions/examples/tree_demo.yaml")
     assert result.returncode == 0
-    assert result.stderr == "note: missions/tree_demo.yaml has no machine; drawing the tree it runs\n"
+    assert result.stderr == "note: missions/examples/tree_demo.yaml has no machine; drawing the tree it runs\n"
     assert result.stdout.startswith("main: sequence")
 
 
@@ -169,22 +169,24 @@ def test_machine_of_a_mission_that_runs_none_draws_the_machines_it_names(tmp_pat
 
 
 def test_labels_show_bindings_and_decorators() -> None:
-    text = botstage("tree", "missions/tree_demo.yaml", "--format", "ascii").stdout
+    text = botstage("tree", "missions/examples/tree_demo.yaml", "--format", "ascii").stdout
     assert "wait  duration={pause}" in text
     assert 'set  key="first_greeted"  value=true' in text
     assert "patrol: force success" in text and "timeout 5 s" in text and "while battery_pct > 20" in text
 
 
 def test_trace_colours_nodes_by_status_at_a_tick(tmp_path: Path) -> None:
-    assert botstage("run", "missions/hello.yaml", "-q", "--out", str(tmp_path / "run")).returncode == 0
+    assert botstage("run", "missions/examples/hello.yaml", "-q", "--out", str(tmp_path / "run")).returncode == 0
     trace = str(tmp_path / "run" / "trace.jsonl")
-    text = botstage("tree", "missions/hello.yaml", "--trace", trace, "--at", "100").stdout
+    text = botstage("tree", "missions/examples/hello.yaml", "--trace", trace, "--at", "100").stdout
     assert "state working  timeout 30 s  finished → done, timeout → done  [ACTIVE]" in text
     assert "wait  duration=4.0  [RUNNING]" in text
     assert "state greeting" in text and "state greeting  success → working, failure → stopped  [ACTIVE]" not in text
-    dot = botstage("tree", "missions/hello.yaml", "--trace", trace, "--at", "100", "--format", "dot").stdout
+    dot = botstage("tree", "missions/examples/hello.yaml", "--trace", trace, "--at", "100", "--format", "dot").stdout
     assert "#f0ad4e" in dot and "#5cb85c" in dot
-    mermaid = botstage("tree", "missions/hello.yaml", "--trace", trace, "--at", "100", "--format", "mermaid").stdout
+    mermaid = botstage(
+        "tree", "missions/examples/hello.yaml", "--trace", trace, "--at", "100", "--format", "mermaid"
+    ).stdout
     assert "classDef running fill:#f0ad4e" in mermaid
 
 
@@ -214,7 +216,7 @@ def test_without_graphviz_one_line_and_a_suggestion(tmp_path: Path) -> None:
 def test_bad_arguments_are_clear(tmp_path: Path) -> None:
     result = botstage("tree", "--format", "gif")
     assert result.returncode == 2 and "unknown format 'gif'" in result.stderr
-    result = botstage("tree", "missions/hello.yaml", "--tree", "nope")
+    result = botstage("tree", "missions/examples/hello.yaml", "--tree", "nope")
     assert result.returncode == 2 and "has no tree 'nope' (trees: greet, patrol)" in result.stderr
     (tmp_path / "t.jsonl").write_text("not json\n")
     result = botstage("tree", "--trace", str(tmp_path / "t.jsonl"))

@@ -12,7 +12,7 @@ from botstage.missions.groot2.btlog import read_btlog
 from botstage.missions.runner import run
 from tests.monitor_harness import ROOT
 
-HELLO = ROOT / "missions" / "hello.yaml"
+HELLO = ROOT / "missions" / "examples" / "hello.yaml"
 runner = CliRunner()
 
 

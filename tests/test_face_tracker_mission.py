@@ -1,4 +1,4 @@
-"""missions/face_tracker.yaml over the emulated AX-12A (`--backend emulator`): the skill's pan
+"""missions/examples/face_tracker.yaml over the emulated AX-12A (`--backend emulator`): the skill's pan
 commands reach the emulated servo through the real driver (dynamixel-sdk on a pty) and the
 simulated camera on its shaft. Its scenarios (missions/scenarios/face_tracker/) run it on the
 simulator."""
@@ -14,10 +14,16 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_the_mission_runs_over_the_emulated_servo(tmp_path: Path) -> None:
-    """`botstage run missions/face_tracker.yaml --backend emulator`: in real time, a few seconds of
+    """`botstage run missions/examples/face_tracker.yaml --backend emulator`: in real time, a few seconds of
     it; the tracker sweeps for the visitor (no face in its first second) through the driver."""
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "botstage.missions.cli", "run", str(ROOT / "missions" / "face_tracker.yaml")]
+    command = [
+        sys.executable,
+        "-m",
+        "botstage.missions.cli",
+        "run",
+        str(ROOT / "missions" / "examples" / "face_tracker.yaml"),
+    ]
     command += ["--backend", "emulator", "--until", "4", "--out", str(out)]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=180, check=False)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]

@@ -1,4 +1,4 @@
-"""missions/gesture_demo.yaml over the emulators, against the simulator's run.
+"""missions/examples/gesture_demo.yaml over the emulators, against the simulator's run.
 
 With ``--backend emulator`` every byte takes the real path: the emulated Arduino plays the book's
 sketch on a pty (rosserial, its scripted hand on a wall clock), the rosserial driver reads it, the
@@ -23,7 +23,7 @@ import pytest
 from botstage.missions.runner import run
 
 ROOT = Path(__file__).resolve().parent.parent
-DEMO = ROOT / "missions" / "gesture_demo.yaml"
+DEMO = ROOT / "missions" / "examples" / "gesture_demo.yaml"
 
 
 def events(folder: Path) -> list[dict[str, Any]]:

@@ -230,7 +230,7 @@ def test_zero_speed_when_the_backend_closes(rig: Rig) -> None:
 
 
 def test_a_mission_runs_over_the_emulator(tmp_path: Path) -> None:
-    result = run(ROOT / "missions/drive_demo.yaml", backend="emulator", until=4.0, out=tmp_path / "run")
+    result = run(ROOT / "missions/examples/drive_demo.yaml", backend="emulator", until=4.0, out=tmp_path / "run")
     summary = result.summary
     assert result.outcome == "time_limit" and summary["backend"] == "emulator"
     emulated = summary["emulator"]
@@ -243,14 +243,14 @@ def test_a_mission_runs_over_the_emulator(tmp_path: Path) -> None:
     assert summary["localization"]["final_error_cm"] < 5
     assert (tmp_path / "run" / "trajectory.csv").exists()
     with pytest.raises(RunError, match="names no robot"):
-        run(ROOT / "missions/hello.yaml", backend="emulator", out=tmp_path / "hello")
+        run(ROOT / "missions/examples/hello.yaml", backend="emulator", out=tmp_path / "hello")
     with pytest.raises(RunError, match="serial port"):
-        run(ROOT / "missions/drive_demo.yaml", backend="hardware", out=tmp_path / "hw")
+        run(ROOT / "missions/examples/drive_demo.yaml", backend="hardware", out=tmp_path / "hw")
     with pytest.raises(RunError, match="no readings from the Launchpad"):  # a port with no board behind it
         master, slave = os.openpty()
         try:
             run(
-                ROOT / "missions/drive_demo.yaml",
+                ROOT / "missions/examples/drive_demo.yaml",
                 backend="hardware",
                 port=os.ttyname(slave),
                 out=tmp_path / "hw2",

@@ -261,7 +261,7 @@ def test_file_level_problems(tmp_path: Path, text: str, expected: str) -> None:
 
 
 def test_every_shipped_mission_is_valid() -> None:
-    for path in sorted(Path("missions").glob("*.yaml")):
+    for path in sorted(Path("missions/examples").glob("*.yaml")):
         assert check(path).problems == [], path
 
 

@@ -20,7 +20,7 @@ from botstage.missions.runner import run
 from tests.monitor_harness import ROOT, LiveRun, live_run, wait_until
 from tests.test_monitor_browser import browser, open_page, page  # noqa: F401  (the browser's fixtures)
 
-HELLO = ROOT / "missions" / "hello.yaml"
+HELLO = ROOT / "missions" / "examples" / "hello.yaml"
 
 
 def closed_port() -> int:

@@ -130,9 +130,9 @@ def test_a_mission_on_remote_devices_leaves_the_local_runs_trace(tmp_path: Path,
     backends = BackendRegistry.default()
     backends.register(ProxiedSim)
     ProxiedSim.calls = {}
-    run(ROOT / "missions" / mission, seed=5, until=until, out=tmp_path / "local")
+    run(ROOT / "missions" / "examples" / mission, seed=5, until=until, out=tmp_path / "local")
     run(
-        ROOT / "missions" / mission,
+        ROOT / "missions" / "examples" / mission,
         seed=5,
         until=until,
         out=tmp_path / "remote",

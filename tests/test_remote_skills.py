@@ -317,7 +317,7 @@ class Handover:
 def test_a_mission_with_remote_skills_leaves_the_local_runs_trace(
     tmp_path: Path, mission: str, until: float, remote: list[str]
 ) -> None:
-    local = run(ROOT / "missions" / mission, seed=3, until=until, out=tmp_path / "local")
+    local = run(ROOT / "missions" / "examples" / mission, seed=3, until=until, out=tmp_path / "local")
     interfaces: dict[str, Any] = {}
     registry = Registry.default()
     host = SkillHost(Registry.default(), interfaces, skills=remote)
@@ -326,7 +326,7 @@ def test_a_mission_with_remote_skills_leaves_the_local_runs_trace(
         for name in remote:
             registry.register(remote_of(registry.get(name), link), replace=True)
         distributed = run(
-            ROOT / "missions" / mission,
+            ROOT / "missions" / "examples" / mission,
             seed=3,
             until=until,
             out=tmp_path / "remote",

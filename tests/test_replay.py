@@ -18,7 +18,7 @@ from botstage.missions.runner import run
 from botstage.missions.scenario import load_scenario, run_scenario
 from botstage.skills.registry import Registry
 
-MISSIONS = sorted(Path("missions").glob("*.yaml"))
+MISSIONS = sorted(Path("missions/examples").glob("*.yaml"))
 
 
 def without_logs(folder: Path) -> list[dict[str, Any]]:
@@ -72,7 +72,7 @@ def test_every_shipped_mission_replays_its_run(tmp_path: Path, mission: Path, se
 def test_a_scenarios_own_run_replays(tmp_path: Path, path: Path | str) -> None:
     """Mocks, events and e-stops of a scenario come back in the replay of its run."""
     if isinstance(path, str):
-        path = scenario_file(tmp_path, Path("missions/hello.yaml").resolve(), path, "recording")
+        path = scenario_file(tmp_path, Path("missions/examples/hello.yaml").resolve(), path, "recording")
     result = run_scenario(load_scenario(path), tmp_path / "run")
     assert result.passed, result.report()
     _, replayed = replay(tmp_path / "run", tmp_path)
@@ -226,7 +226,7 @@ def test_an_interrupted_run_replays_up_to_where_it_was_stopped(tmp_path: Path) -
         if engine.clock.ticks == 42:
             raise KeyboardInterrupt  # what Ctrl-C does mid-run
 
-    recorded = run(Path("missions/hello.yaml"), out=tmp_path / "run", before_tick=stop_at_tick_42)
+    recorded = run(Path("missions/examples/hello.yaml"), out=tmp_path / "run", before_tick=stop_at_tick_42)
     assert recorded.outcome == "interrupted"
     spec, replayed = replay(tmp_path / "run", tmp_path)
     assert spec["until"] == 4.2 and spec["expect"]["outcome"] == "time_limit"
@@ -237,7 +237,7 @@ def test_an_interrupted_run_replays_up_to_where_it_was_stopped(tmp_path: Path) -
 
 def test_a_recorded_run_replays_and_catches_a_change_to_the_tree(tmp_path: Path) -> None:
     mission = tmp_path / "hello.yaml"
-    mission.write_text(Path("missions/hello.yaml").read_text())
+    mission.write_text(Path("missions/examples/hello.yaml").read_text())
     run(mission, out=tmp_path / "run")
     spec, _ = replay(tmp_path / "run", tmp_path)
     assert spec["mission"] == "hello.yaml" and spec["mocks"] == {}  # hello's skills are all bookkeeping
@@ -314,7 +314,7 @@ def test_a_broken_summary_is_a_clear_error(tmp_path: Path, summary: str, says: s
 def test_a_line_that_is_not_an_event_is_a_located_error(tmp_path: Path, line: str) -> None:
     (tmp_path / "trace.jsonl").write_text('{"tick": 0, "t": 0.0, "ev": "tick"}\n' + line + "\n")
     (tmp_path / "summary.json").write_text(
-        '{"mission_file": "missions/hello.yaml", "outcome": "interrupted", "ticks": 5}'
+        '{"mission_file": "missions/examples/hello.yaml", "outcome": "interrupted", "ticks": 5}'
     )
     with pytest.raises(ValueError, match=r"trace\.jsonl:2: not a trace event"):
         from_trace(tmp_path / "trace.jsonl", tmp_path / "s.yaml")

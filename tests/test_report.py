@@ -50,7 +50,9 @@ def test_the_console_check_catches_errors(tmp_path: Path) -> None:
     assert any("Uncaught ReferenceError" in line for line in console)
 
 
-@pytest.mark.parametrize("mission", ["missions/hello.yaml", "missions/tree_demo.yaml", "missions/drive_demo.yaml"])
+@pytest.mark.parametrize(
+    "mission", ["missions/examples/hello.yaml", "missions/examples/tree_demo.yaml", "missions/examples/drive_demo.yaml"]
+)
 def test_report_opens_cleanly_with_timeline_and_pictures(tmp_path: Path, mission: str) -> None:
     run(mission, out=tmp_path)
     page = tmp_path / "report.html"
@@ -73,7 +75,7 @@ def test_the_map_marks_each_bump_and_says_which_were_walls_and_which_people(tmp_
     from botstage.missions.check import check
     from botstage.missions.report import trajectory_map
 
-    checked = check("missions/drive_demo.yaml")
+    checked = check("missions/examples/drive_demo.yaml")
     (tmp_path / "trajectory.csv").write_text("t,x,y,theta\n0,6,1,-1.57\n1,6,1.5,-1.57\n2,7,1.9,0\n")
     assert '<p class="bumps">No bumps.</p>' in trajectory_map(tmp_path, checked)
     (tmp_path / "bumps.csv").write_text("t,x,y,what\n1.5,6.1,1.6,wall\n2.25,7,1.9,person\n3,7.2,1.9,wall\n")

@@ -19,7 +19,7 @@ from botstage.robots.backend_registry import BackendRegistry
 from tests.tools import install_wheel
 
 ROOT = Path(__file__).resolve().parent.parent
-DRIVE_DEMO = ROOT / "missions" / "drive_demo.yaml"
+DRIVE_DEMO = ROOT / "missions" / "examples" / "drive_demo.yaml"
 MODULE = '''
 import json
 

@@ -31,7 +31,7 @@ SUMMARY_FIELDS = {
 
 def test_hello_twice_with_seed_7_gives_identical_trace_and_summary(tmp_path: Path) -> None:
     for name in ("a", "b"):
-        result = botstage("run", "missions/hello.yaml", "--seed", "7", "--out", str(tmp_path / name))
+        result = botstage("run", "missions/examples/hello.yaml", "--seed", "7", "--out", str(tmp_path / name))
         assert result.returncode == 0, result.stderr
     a, b = tmp_path / "a", tmp_path / "b"
     assert (a / "trace.jsonl").read_bytes() == (b / "trace.jsonl").read_bytes()
@@ -43,7 +43,7 @@ def test_hello_twice_with_seed_7_gives_identical_trace_and_summary(tmp_path: Pat
 
 
 def test_summary_has_every_field(tmp_path: Path) -> None:
-    summary = run("missions/hello.yaml", out=tmp_path).summary
+    summary = run("missions/examples/hello.yaml", out=tmp_path).summary
     assert set(summary) >= SUMMARY_FIELDS
     assert summary["states_visited"][:3] == ["greeting", "working/patrol", "working/rest"]
     assert summary["states_visited"][-1] == "done"
@@ -54,14 +54,14 @@ def test_summary_has_every_field(tmp_path: Path) -> None:
 
 
 def test_counters_report_blackboard_values(tmp_path: Path) -> None:
-    summary = run("missions/tree_demo.yaml", out=tmp_path).summary
+    summary = run("missions/examples/tree_demo.yaml", out=tmp_path).summary
     assert summary["outcome"] == "success"
     assert summary["counters"] == {"first_greeted": True, "second_greeted": True}
     assert summary["states_visited"] == []
 
 
 def test_default_run_folder_is_named_after_the_mission(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    mission = Path("missions/hello.yaml").resolve()
+    mission = Path("missions/examples/hello.yaml").resolve()
     monkeypatch.chdir(tmp_path)
     first = run(mission).folder
     second = run(mission).folder
@@ -80,7 +80,7 @@ def test_stopping_a_run_cancels_what_runs(tmp_path: Path, how: str) -> None:
             os.kill(os.getpid(), signal.SIGTERM)
 
     before = signal.getsignal(signal.SIGTERM)
-    result = run("missions/hello.yaml", out=tmp_path, progress=progress, progress_interval_s=0)
+    result = run("missions/examples/hello.yaml", out=tmp_path, progress=progress, progress_interval_s=0)
     assert result.outcome == "interrupted"
     events = [json.loads(line) for line in (tmp_path / "trace.jsonl").read_text().splitlines()]
     cancels = [e for e in events if e["ev"] == "skill_cancel"]
@@ -91,7 +91,7 @@ def test_stopping_a_run_cancels_what_runs(tmp_path: Path, how: str) -> None:
 
 
 def test_until_limits_mission_time(tmp_path: Path) -> None:
-    result = run("missions/hello.yaml", out=tmp_path, until=5)
+    result = run("missions/examples/hello.yaml", out=tmp_path, until=5)
     assert result.outcome == "time_limit"
     assert result.summary["sim_time_s"] == 5.0
     assert result.reason == "the time limit of 5 s of mission time was reached"
@@ -105,7 +105,7 @@ def test_invalid_missions_and_backends_are_refused_before_anything_moves(tmp_pat
     assert "unknown node or skill 'wiat'" in str(info.value)
     assert not (tmp_path / "run").exists()
     with pytest.raises(RunError, match="names no robot"):
-        run("missions/hello.yaml", backend="hardware", out=tmp_path / "hw")
+        run("missions/examples/hello.yaml", backend="hardware", out=tmp_path / "hw")
     result = botstage("run", "--backend", "gpu", "--out", str(tmp_path / "x"))
     assert result.returncode == 2
     assert result.stderr.startswith("error: unknown backend 'gpu'; installed: sim (the built-in simulator")

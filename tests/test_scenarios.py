@@ -15,7 +15,7 @@ from botstage.skills.registry import Registry
 from tests.test_cli import botstage
 
 pytest_plugins = ["pytester"]
-HELLO = Path("missions/hello.yaml").resolve()
+HELLO = Path("missions/examples/hello.yaml").resolve()
 
 
 def scenario(tmp_path: Path, text: str):
@@ -215,7 +215,7 @@ def test_coverage_counts_and_pictures(tmp_path: Path) -> None:
     result = botstage("test", "missions/scenarios/hello/normal.yaml", "--coverage", "--coverage-file", str(cov))
     assert result.returncode == 0
     assert "44.4% (4/9)" in result.stdout and "untested transition: hello/preempt:estop" in result.stdout
-    data = json.loads(cov.read_text())["missions/hello.yaml"]
+    data = json.loads(cov.read_text())["missions/examples/hello.yaml"]
     assert data["nodes"] == {"covered": 9, "total": 9, "percent": 100.0}
     assert data["node_outcomes"]["hello/working/patrol/patrol/condition"] == {"success": 230}
     assert set(data["untested"]["transitions"]) == {
@@ -225,9 +225,9 @@ def test_coverage_counts_and_pictures(tmp_path: Path) -> None:
         "hello/working/rest:failure",
         "hello/preempt:estop",
     }
-    text = botstage("machine", "missions/hello.yaml", "--coverage", str(cov)).stdout
+    text = botstage("machine", "missions/examples/hello.yaml", "--coverage", str(cov)).stdout
     assert "failure -> stopped (untested)" in text and "preempt: estop -> stopped (untested)" in text
-    dot = botstage("machine", "missions/hello.yaml", "--coverage", str(cov), "--format", "dot").stdout
+    dot = botstage("machine", "missions/examples/hello.yaml", "--coverage", str(cov), "--format", "dot").stdout
     assert dot.count('style=dashed, color="#999999"') == 5  # 4 untested transitions and the preemption
     whole = botstage("test", "missions/scenarios/hello", "--coverage", "--coverage-file", str(cov))  # the whole suite
     assert "100% (9/9)" in whole.stdout and "untested" not in whole.stdout

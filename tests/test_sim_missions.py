@@ -12,7 +12,7 @@ from botstage.missions.runner import RunError, run
 
 
 def test_drive_demo_moves_the_simulated_chefbot(tmp_path: Path) -> None:
-    result = run("missions/drive_demo.yaml", out=tmp_path)
+    result = run("missions/examples/drive_demo.yaml", out=tmp_path)
     assert result.outcome == "success"
     sim = result.summary["sim"]
     assert sim["bumps"] == 0 and sim["not_simulated"] == []
@@ -27,9 +27,9 @@ def test_drive_demo_moves_the_simulated_chefbot(tmp_path: Path) -> None:
 
 def test_same_seed_same_trajectory(tmp_path: Path) -> None:
     for name in ("a", "b"):
-        run("missions/drive_demo.yaml", out=tmp_path / name)
+        run("missions/examples/drive_demo.yaml", out=tmp_path / name)
     assert (tmp_path / "a" / "trajectory.csv").read_bytes() == (tmp_path / "b" / "trajectory.csv").read_bytes()
-    run("missions/drive_demo.yaml", out=tmp_path / "c", seed=99)
+    run("missions/examples/drive_demo.yaml", out=tmp_path / "c", seed=99)
     assert (tmp_path / "a" / "trajectory.csv").read_bytes() != (tmp_path / "c" / "trajectory.csv").read_bytes()
 
 
@@ -106,7 +106,7 @@ def test_move_without_a_drive_fails_with_a_reason(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("name", ["museum_patrol", "restaurant_patrol"])
 def test_patrol_missions_complete_with_the_trajectory_in_the_report(tmp_path: Path, name: str) -> None:
-    result = run(f"missions/{name}.yaml", out=tmp_path)
+    result = run(f"missions/examples/{name}.yaml", out=tmp_path)
     assert result.outcome == "success", result.reason
     sim = result.summary["sim"]
     assert sim["bumps"] == 0

@@ -286,7 +286,7 @@ def test_a_chatting_mission_is_deterministic(chat_mission: Path, tmp_path: Path)
 
 
 def test_a_run_where_nobody_speaks_has_no_transcript(tmp_path: Path) -> None:
-    result = run_mission("missions/hello.yaml", out=tmp_path / "run")
+    result = run_mission("missions/examples/hello.yaml", out=tmp_path / "run")
     assert not (result.folder / "transcript.jsonl").exists()
     assert 'id="transcript"' not in (result.folder / "report.html").read_text()
 

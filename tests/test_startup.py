@@ -26,7 +26,7 @@ print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] in ("scipy", "
 
 
 def test_checking_a_mission_imports_no_heavy_package() -> None:
-    mission = str(ROOT / "missions" / "peoplebot_entertainer.yaml")
+    mission = str(ROOT / "missions" / "examples" / "peoplebot_entertainer.yaml")
     result = subprocess.run(
         [sys.executable, "-c", PROBE, mission], capture_output=True, text=True, cwd=ROOT, timeout=120, check=True
     )

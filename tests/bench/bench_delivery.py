@@ -1,6 +1,6 @@
 """Delivery benchmark: Chefbot's delivery mission in the restaurant (the book's hotel stand-in).
 
-Runs ``missions/chefbot_delivery.yaml`` on the simulator for several seeds, as shipped (three
+Runs ``missions/examples/chefbot_delivery.yaml`` on the simulator for several seeds, as shipped (three
 orders: tables 2, 4 and 6) and reports:
 
 - **time per delivery**, in mission (sim) seconds: from leaving the kitchen loaded to the
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from botstage.behaviors.engine import Engine
-from botstage.missions import MISSIONS_DIR
+from botstage.missions import EXAMPLES_DIR
 from botstage.missions.runner import run
 from botstage.robots import PROFILES_DIR
 from botstage.robots.interfaces import Pose2D
@@ -33,7 +33,7 @@ from botstage.robots.profile import load_profile
 from botstage.skills.nav.ekf import wrap
 from botstage.skills.nav.localization import Localizer
 
-MISSION = MISSIONS_DIR / "chefbot_delivery.yaml"
+MISSION = EXAMPLES_DIR / "chefbot_delivery.yaml"
 SEEDS = (1, 2, 3, 4, 5)
 
 

@@ -1,7 +1,7 @@
 """The PeopleBot entertainer's default run: wall time of 10 simulated minutes, and bumps. Run
 with `python -m tests.bench entertainer`.
 
-The default mission (missions/peoplebot_entertainer.yaml) runs as `botstage run` runs it — the
+The default mission (missions/examples/peoplebot_entertainer.yaml) runs as `botstage run` runs it — the
 simulated museum with its people, the Kinect-like tracker, the rendered camera, the simulated
 visitors' voices through pocketsphinx, AIML, espeak-ng speech when installed, photos to the
 run's own gallery over loopback — on seeds 1 to 10. Each line: wall time, how many times faster

@@ -11,7 +11,7 @@ building the run nor loading the page counts. A paced run's clock is the wall cl
 while the run is held: those runs are given time to spare and stopped by the stopwatch once it has
 counted their ticks.
 
-- **tick_cost**: the entertainer (missions/peoplebot_entertainer.yaml), seed 1, 600 s of mission
+- **tick_cost**: the entertainer (missions/examples/peoplebot_entertainer.yaml), seed 1, 600 s of mission
   time at full speed (quick: 120 s), wall time of its ticks without any monitor, with a monitor
   and a connected page, and (informative) with a monitor and no page; after an untimed warm-up of
   each way, the variants interleaved (each one first in turn), 3 repeats each (quick: 1), the

@@ -21,7 +21,7 @@ from typing import Any
 
 import yaml
 
-from botstage.missions import MISSIONS_DIR
+from botstage.missions import EXAMPLES_DIR
 from botstage.missions.check import check
 
 NODES = 20_000
@@ -113,7 +113,7 @@ def missed(results: list[dict[str, Any]]) -> list[str]:
 def main(quick: bool = False) -> list[dict[str, Any]]:
     nodes = 2_000 if quick else NODES
     repeats = 1 if quick else 3
-    check(MISSIONS_DIR / "hello.yaml")  # skills and node kinds loaded once, outside the timing
+    check(EXAMPLES_DIR / "hello.yaml")  # skills and node kinds loaded once, outside the timing
     results = []
     with tempfile.TemporaryDirectory(prefix="botstage-bench-") as folder:
         for name, make in (("siblings", siblings), ("mixed", mixed)):

@@ -29,7 +29,7 @@ one's node and serves, on that one Zenoh session, both sides of every comparison
   the sending window (messages/s, MB/s); target >= 0.8 of raw. **stream_image_flat_out** sends
   the images back to back instead (no target): the most each way carries.
 - **entertainer**: ``botstage up missions/deployments/peoplebot_five_computers.yaml`` (five
-  processes in lockstep) against ``botstage run missions/peoplebot_entertainer.yaml`` with the
+  processes in lockstep) against ``botstage run missions/examples/peoplebot_entertainer.yaml`` with the
   same seed and ``--until``: each command's wall time, the mission loop's own (its summary's
   ``wall_time_s``), their ratios (target <= 2 for the commands) and whether the counters agree.
 
