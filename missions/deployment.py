@@ -8,14 +8,14 @@ the router or in `connect`, a skill the mission calls that no process serves, a 
 interface served twice, an interface the robot does not have, the simulator split over processes
 (it is one world), and the mission's own problems.
 
-Rules (decided here, documented in the README): exactly one process runs the mission; it runs
-every skill no other process serves, unless its own `skills:` lists them, which is then the
-whole list. Interfaces come from the processes that open a backend (`backend:`); when none
-lists `interfaces:`, the mission's process opens the robot as a one-process run does. A process
-that opens the robot may also serve it as ROS 2 topics (`topics: true`) for teleop and ROS 2
-tools: they drive it whenever the mission does not (missions/distributed/operator.py). Processes
-reach each other through the router process (default: the mission's), or the processes they
-name in `connect:`. Process names are their ROS node names.
+Rules (decided here, documented in docs/guides/deployments.md): exactly one process runs the
+mission; it runs every skill no other process serves, unless its own `skills:` lists them, which
+is then the whole list. Interfaces come from the processes that open a backend (`backend:`);
+when none lists `interfaces:`, the mission's process opens the robot as a one-process run does.
+A process that opens the robot may also serve it as ROS 2 topics (`topics: true`) for teleop and
+ROS 2 tools: they drive it whenever the mission does not (missions/distributed/operator.py).
+Processes reach each other through the router process (default: the mission's), or the processes
+they name in `connect:`. Process names are their ROS node names.
 """
 
 from __future__ import annotations

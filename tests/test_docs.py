@@ -12,8 +12,9 @@
   with the environment it is in); ``<!-- docs-test: file NAME -->`` writes the block to NAME in
   the folder instead of running it (a mission the next commands use). ``text`` and ``yaml``
   blocks without a comment are shown output or examples and are not run.
-- Each CLI verb (the Click command tree, as lazily loading groups answer it), each node kind and
-  each skill of the live registries has its entry, by anchor, in the generated reference pages.
+- Each CLI verb (the Click command tree, as lazily loading groups answer it), each node kind (of
+  botstage's scope and of the XML node sets) and each skill of the live registries has its entry,
+  by anchor, in the generated reference pages.
 - The README stays short and links only to pages that exist; the README's example validates.
 """
 
@@ -132,6 +133,10 @@ def test_every_node_kind_and_skill_has_a_reference_entry(site: Path) -> None:
     assert "sequence" in kinds and "wait" in skills
     assert [k for k in kinds if f"kind-{k}" not in ids(site, "nodes.html")] == []
     assert [s for s in skills if f"skill-{s}" not in ids(site, "skills.html")] == []
+    # the XML node sets (`botstage nodes --scope btcpp`) have their own entries, apart from botstage's
+    xml = NodeKinds.default("btcpp").listed()
+    assert "Sequence" in xml and "RecoveryNode" in xml and "sequence" not in xml
+    assert [k for k in xml if f"kind-btcpp-{k}" not in ids(site, "nodes.html")] == []
 
 
 def test_the_schema_reference_lists_every_mission_key(site: Path) -> None:

@@ -5,13 +5,15 @@ Nothing here is written by hand, so the pages cannot fall behind what is install
 - ``reference/cli.md``: the ``botstage`` command, walked as a Click command tree
   (``typer.main.get_command(app)``) through ``list_commands`` and ``get_command``, the calls a
   lazily loading group answers too; each verb's usage, help, arguments and options.
-- ``reference/nodes.md``: every node kind of ``NodeKinds.default()``, with its options.
+- ``reference/nodes.md``: every node kind of ``NodeKinds.default()`` (what a YAML mission writes)
+  and, apart, the XML node sets (``NodeKinds.default("btcpp")``: BT.CPP's, Nav2's), with their
+  options.
 - ``reference/skills.md``: every skill of ``Registry.default()``, with its contract.
 - ``reference/schema.md`` and ``reference/mission.schema.json``: the mission schema,
   as ``botstage schema`` prints it.
 
-Each entry has a stable anchor (``cli-run``, ``kind-timeout``, ``skill-wait``) that
-tests/test_docs.py checks against the live command tree and registries.
+Each entry has a stable anchor (``cli-run``, ``kind-timeout``, ``kind-btcpp-Sequence``,
+``skill-wait``) that tests/test_docs.py checks against the live command tree and registries.
 """
 
 from __future__ import annotations
@@ -113,10 +115,17 @@ def cli_page() -> str:
 # -- node kinds and skills -----------------------------------------------------------------------
 
 
-def kinds_registry() -> Any:
+def kinds_registry(scope: str = "botstage") -> Any:
     from botstage.behaviors.kinds import NodeKinds
 
-    return NodeKinds.default()
+    return NodeKinds.default(scope)
+
+
+def xml_scope() -> str:
+    """The scope a BehaviorTree.CPP XML file's trees are written in (BT.CPP's and Nav2's node sets)."""
+    from botstage.behaviors.btcpp.vocabulary import SCOPE
+
+    return SCOPE
 
 
 def skills_registry() -> Any:
@@ -136,31 +145,52 @@ def _options(model: Any, skip: set[str]) -> list[str]:
     return rows
 
 
+def _kind_entry(kinds: Any, name: str, anchor: str, level: str) -> list[str]:
+    kind = kinds.get(name)
+    lines = [f"{level} `{name}` {{ #{anchor} }}", ""]
+    lines += [f"Written `{text(kind.written())}`; from {text(kinds.origin(name))}.", ""]
+    if kind.description:
+        lines += [text(kind.description), ""]
+    rows = _options(getattr(kind, "Options", None), {"child", "name"})
+    if rows:
+        lines += ["| option | type | default | meaning |", "|---|---|---|---|", *rows, ""]
+    return lines
+
+
 def nodes_page() -> str:
-    kinds = kinds_registry()
+    kinds, scope = kinds_registry(), xml_scope()
+    xml = kinds_registry(scope)
     lines = [
         "# Node kinds",
         "",
         GENERATED,
-        "The node kinds a tree can use, read from the node-kind registry (`NodeKinds.default()`, "
-        "the same list `botstage nodes` prints). [Trees](../concepts/trees.md) explains how they "
-        "are written.",
+        "The node kinds a tree can use, read from the node-kind registry. Names are scoped "
+        "([Architecture](../concepts/architecture.md#node-sets-are-scoped)), so each concept has one "
+        "name where it is written: a YAML mission sees [botstage's kinds](#scope-botstage); a "
+        f"BehaviorTree.CPP XML file (or a mission with `nodes: {scope}`) sees [the XML node sets](#scope-{scope}) "
+        "besides them. [Trees](../concepts/trees.md) explains how they are written.",
+        "",
+        "## botstage's kinds { #scope-botstage }",
+        "",
+        "What a YAML mission writes: `NodeKinds.default()`, the list `botstage nodes` prints.",
         "",
     ]
-    by_origin: dict[str, list[str]] = {}
-    for name in kinds:
-        by_origin.setdefault(kinds.origin(name), []).append(name)
-    for origin, names in by_origin.items():
-        lines += [f"## From {origin}", ""]
-        for name in names:
-            kind = kinds.get(name)
-            lines += [f"### `{name}` {{ #kind-{name} }}", ""]
-            lines += [f"Written `{text(kind.written())}`", ""]
-            if kind.description:
-                lines += [text(kind.description), ""]
-            rows = _options(getattr(kind, "Options", None), {"child", "name"})
-            if rows:
-                lines += ["| option | type | default | meaning |", "|---|---|---|---|", *rows, ""]
+    for name in kinds.listed():
+        lines += _kind_entry(kinds, name, f"kind-{name}", "###")
+    lines += [
+        f"## The XML node sets {{ #scope-{scope} }}",
+        "",
+        f"What a BehaviorTree.CPP XML file sees besides botstage's kinds, under their own IDs: "
+        f"`NodeKinds.default({scope!r})`, the list `botstage nodes --scope {scope}` prints. "
+        "[BehaviorTree.CPP XML and Groot2](../guides/btcpp.md) and [Nav2's trees](../guides/nav2.md) "
+        "explain them.",
+        "",
+    ]
+    for set_name, node_set in xml.sets.items():
+        lines += [f"### {text(node_set.description or set_name)} (`{set_name}`) {{ #set-{set_name} }}", ""]
+        for name in xml.listed():
+            if xml.node_set(name) == set_name:
+                lines += _kind_entry(xml, name, f"kind-{scope}-{name}", "####")
     return "\n".join(lines) + "\n"
 
 

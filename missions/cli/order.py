@@ -15,7 +15,7 @@ def order(
     run_folder: Path | None = typer.Option(None, "--run", help="the run folder (default: the newest running mission)"),
     runs: Path = typer.Option(Path("runs"), help="where to look for running missions"),
 ) -> None:
-    """Give a running delivery mission an order (through its run folder's inbox; see the README)."""
+    """Give a running delivery mission an order (through its run folder's inbox; see docs/robots/chefbot.md)."""
     from botstage.missions.orders import find_inbox, post_order
     from botstage.skills.delivery.inbox import OrderError
 

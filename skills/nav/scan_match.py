@@ -17,7 +17,7 @@ p90 per match on the museum loop (181 beams, 0.05 m map; target 5 ms), 1.5 ms me
 ms p90 with the window at its widest; from 300 random museum poses with the prior 0.15 m and 4°
 off, 93% accepted (the rest refused as ambiguous: a robot facing one wall) with 0.5 cm mean and
 1.8 cm worst error; over a 56 m loop the map-corrected pose stays within 1.2 cm and 0.4°, where
-odometry alone drifts 1-3 m and 10-17° at worst (README, Benchmarks).
+odometry alone drifts 1-3 m and 10-17° at worst (docs/benchmarks.md, Navigation and localisation).
 
 How a match works:
 
