@@ -246,14 +246,18 @@ class RunSession:
         self.folder = run_folder(self.mission.name, self.out)
         self.started_at = time.perf_counter()
         self._sink = (self.folder / "trace.jsonl").open("w", encoding="utf-8")
+        # a real robot connects on a clock of its own: the run's starts when it is open
+        connecting = self.clock if self.kind.simulated else WallClock(self.mission.rate_hz)
         if self._robot is not None:
             try:
-                self.backend = open_kind(self.kind, self._request(), self.options)
+                self.backend = open_kind(self.kind, self._request(connecting), self.options)
             except BackendError as exc:
                 self._sink.close()
                 raise RunError(exc.message, exc.problems) from None
         if isinstance(self.clock, WallClock):  # connecting took a while: mission time starts now
             self.clock.restart()
+        if self.backend is not None and connecting is not self.clock:
+            self.backend.use_clock(self.clock)  # what arrived while connecting, rebased
 
     def robot_request(self, clock: Clock) -> OpenRequest | None:
         """What opening the mission's robot takes, on ``clock``: for a robot served by another
@@ -263,7 +267,7 @@ class RunSession:
         self.clock = clock
         return self._request()
 
-    def _request(self) -> OpenRequest:
+    def _request(self, clock: Clock | None = None) -> OpenRequest:
         assert self._robot is not None
         mission = self.mission
         profile, _, grid, start = self._robot
@@ -280,7 +284,7 @@ class RunSession:
         return OpenRequest(
             profile,
             start,
-            self.clock,
+            clock or self.clock,
             seed=self.seed,
             grid=grid,
             people=mission.people,
