@@ -164,7 +164,8 @@ def test_options_are_checked_and_named(robot: FakeRobot) -> None:
 def test_listing_the_backends_loads_no_zenoh() -> None:
     """`botstage --help` lists every backend: the ros2 one's transport loads only when a run opens it."""
     code = (
-        "import sys; from botstage.robots.backend_registry import BackendRegistry; BackendRegistry.default().get('ros2');"
+        "import sys; from botstage.robots.backend_registry import BackendRegistry;"
+        "BackendRegistry.default().get('ros2');"
         "print(sorted(m for m in ('zenoh', 'rosbags') if m in sys.modules))"
     )
     shown = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
