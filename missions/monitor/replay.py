@@ -19,7 +19,7 @@ from botstage.missions.monitor.hub import Hub, type_name
 from botstage.missions.monitor.robot_view import POSES_FILE, read_poses
 from botstage.robots.gridmap import GridMap
 from botstage.robots.gridmap import load as load_map
-from botstage.robots.sim.backend import map_path
+from botstage.robots.gridmap import map_path
 from botstage.skills.display import DEFAULT as DEFAULT_LAYOUT
 from botstage.skills.display import LAYOUTS
 
