@@ -19,7 +19,7 @@ from botstage.behaviors.machine import (
     resolve_outcome,
     resolve_target,
 )
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 from botstage.robots.limits import PositiveSeconds, number_problem
 from botstage.skills.expression import Expression
 

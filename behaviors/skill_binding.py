@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from pydantic import ValidationError
 
 from botstage.behaviors.skill_behaviour import KeyRef, SkillBehaviour
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.base import MISSING, Skill, check_type
 from botstage.skills.registry import UnknownSkillError
 

@@ -29,10 +29,10 @@ from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import NodeKinds
 from botstage.behaviors.machine import MachinePlan
 from botstage.behaviors.render import Item, describe
-from botstage.behaviors.suggest import did_you_mean
 from botstage.missions.loader import Loaded, Location, Locations, Problem, load
 from botstage.missions.schema import Mission, key_spec, parse_type
 from botstage.robots.clock import SimClock
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.base import check_type, plain_type, type_name
 from botstage.skills.registry import Registry
 
@@ -325,42 +325,10 @@ def _check_backend_sections(profile: Profile, locations: Locations, out: _Collec
             out.problems.append(Problem(locations.find(where), message, hint))
 
 
-def _check_walks(mission: Mission, grid: GridMap, out: _Collector) -> None:
-    """Each walk's points are places of the map or [x, y], and a person fits all along its path
-    (free floor, a person's radius from walls), so a walker is never stuck where it was sent."""
-    from botstage.robots.sim.people import first_blocked, standable
-
-    room = standable(grid) if mission.walks else None
-    for index, walk in enumerate(mission.walks):
-        points: list[tuple[float, float]] = []
-        for number, point in enumerate(walk.path):
-            where = ("walks", index, "path", number)
-            if isinstance(point, str):
-                if point not in grid.places:
-                    out.at(where, f"the map has no place {point!r}", did_you_mean(point, grid.places))
-                    break
-                points.append((float(grid.places[point][0]), float(grid.places[point][1])))
-            elif len(point) != 2:
-                out.at(where, "a walk's point is a place's name or [x, y]")
-                break
-            else:
-                points.append((float(point[0]), float(point[1])))
-        else:
-            if walk.repeat > 1:
-                points.append(points[0])  # the way back to the start between rounds
-            blocked = first_blocked(grid, points, room)
-            if blocked is not None:
-                towards, x, y = blocked
-                where = ("walks", index, "path", towards % len(walk.path))  # the way back leads to the first
-                out.at(
-                    where,
-                    f"a person cannot walk through ({x:.2f}, {y:.2f}): a wall, or less than a person's width from one",
-                )
-
-
 def _check_world(mission: Mission, path: Path, out: _Collector) -> GridMap | None:
     """The world's problems; its map, if it loads."""
     from botstage.robots.gridmap import MapError, known_maps, load, map_path
+    from botstage.robots.sim.scenery import check_scenery
 
     assert mission.world is not None
     found = map_path(mission.world, path.parent)
@@ -376,19 +344,8 @@ def _check_world(mission: Mission, path: Path, out: _Collector) -> GridMap | Non
     except MapError as exc:
         out.at(("world",), f"the map cannot be loaded: {exc}")
         return None
-    for index, gathering in enumerate(mission.gatherings):
-        where = ("gatherings", index, "at")
-        if isinstance(gathering.at, str):
-            if gathering.at not in grid.places:
-                out.at(where, f"the map has no place {gathering.at!r}", did_you_mean(gathering.at, grid.places))
-        elif len(gathering.at) != 2:
-            out.at(where, "a gathering's place is a name or [x, y]")
-        elif not grid.is_free(gathering.at[0], gathering.at[1]):
-            out.at(where, f"({gathering.at[0]:g}, {gathering.at[1]:g}) is not free floor on the map")
-    _check_walks(mission, grid, out)
-    needed = sum(g.size for g in mission.gatherings)
-    if needed > mission.people:
-        out.at(("gatherings",), f"the gatherings need {needed} people; `people:` is {mission.people}")
+    for where, message, hint in check_scenery(mission.people, mission.gatherings, mission.walks, grid):
+        out.at(where, message, hint)
     start = mission.start
     if start is None:
         if not grid.places:

@@ -52,7 +52,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from botstage.behaviors.blackboard import MissingKeyError
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 from botstage.missions.loader import Loaded, Location, Problem, load
 from botstage.missions.mocks import Call, Rule, Write, calls_of, mock_of
 from botstage.missions.replay import from_trace

@@ -17,62 +17,13 @@ from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validat
 from botstage.behaviors.kinds import NodeKinds
 from botstage.behaviors.kinds.base import CONDITION_SCHEMA, MACHINE_REF, NODE_REF, merge_property
 from botstage.robots.limits import MAX_NAME_BYTES, MAX_SECONDS
+from botstage.robots.sim.scenery import Gathering, VoiceSettings, Walk
 from botstage.skills.registry import Registry
 
 SCHEMA_ID = "https://botstage.dev/schema/mission.json"
 # every model refuses NaN and infinities: `until: .nan` would end a run at once, `time: .inf` never
 _CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
 _DAYS = f"at most {MAX_SECONDS:,.0f} s (about {MAX_SECONDS / 86400:.0f} days)"
-
-
-class Gathering(BaseModel):
-    """A group the simulator's people form on cue: the nearest free people walk to ``at``."""
-
-    model_config = _CONFIG
-    at: str | list[float] = Field(description="a named place of the map, or [x, y]")
-    size: int = Field(ge=2, le=6, description="people in the group (the paper's 2-6)")
-    time: float = Field(default=0.0, ge=0, le=MAX_SECONDS, description=f"mission seconds when they set off; {_DAYS}")
-    stay: float = Field(default=120.0, gt=0, le=MAX_SECONDS, description=f"seconds they stay once there; {_DAYS}")
-
-
-class Walk(BaseModel):
-    """A simulated person who walks a given path and nothing else (a face tracker's test subject):
-    standing at the first point until ``at``, then point to point at ``speed``, ``repeat`` times
-    round (back from the last point to the first between rounds), ``pause`` s at each point, and
-    standing at the last point once done. Never sent elsewhere by the crowd's wandering or groups."""
-
-    model_config = _CONFIG
-    path: list[str | list[float]] = Field(
-        min_length=2, max_length=1000, description="the points walked through: named places of the map, or [x, y]"
-    )
-    speed: float = Field(default=1.0, gt=0, le=3.0, description="m/s (1.0: an unhurried walk; 3 m/s is running)")
-    at: float = Field(default=0.0, ge=0, le=MAX_SECONDS, description=f"mission seconds when they set off; {_DAYS}")
-    repeat: int = Field(default=1, ge=1, le=10_000, description="rounds of the path")
-    pause: float = Field(default=0.0, ge=0, le=MAX_SECONDS, description=f"seconds they stand at each point; {_DAYS}")
-
-
-VOICE_COMMANDS = ("PHOTO", "YES", "WHATSUP", "CANCEL", "CIAO")  # what the simulator's voice clips say
-
-
-class VoiceSettings(BaseModel):
-    """How the simulator's people speak to the robot (robots/sim/voices.py)."""
-
-    model_config = _CONFIG
-    near: float = Field(default=2.5, gt=0, description="m: people within this of the robot speak to it")
-    every: float = Field(default=12.0, gt=0, le=MAX_SECONDS, description=f"s: mean wait between utterances; {_DAYS}")
-    command_share: float = Field(default=0.6, ge=0, le=1, description="share of utterances that are commands")
-    pause: float = Field(default=1.0, ge=0, le=MAX_SECONDS, description=f"s of quiet at least between two; {_DAYS}")
-    command_weights: dict[str, Annotated[float, Field(ge=0)]] = Field(
-        default_factory=dict, description="how often each command is said, relatively (default: all alike)"
-    )
-
-    @field_validator("command_weights")
-    @classmethod
-    def _commands(cls, value: dict[str, float]) -> dict[str, float]:
-        unknown = sorted(set(value) - set(VOICE_COMMANDS))
-        if unknown:
-            raise ValueError(f"no such command {', '.join(unknown)} (commands: {', '.join(VOICE_COMMANDS)})")
-        return value
 
 
 class KeySpec(BaseModel):

@@ -7,13 +7,13 @@ import itertools
 import numpy as np
 import pytest
 
-from botstage.missions.schema import VOICE_COMMANDS
 from botstage.robots.clock import SimClock
 from botstage.robots.gridmap import load
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.profile import load_profile
 from botstage.robots.sim.backend import SimBackend
 from botstage.robots.sim.people import Person
+from botstage.robots.sim.scenery import VOICE_COMMANDS
 from botstage.robots.sim.voices import Voices, clips
 from botstage.skills.speech.recognizer import shared_recognizer
 from botstage.skills.speech.vad import find_utterances

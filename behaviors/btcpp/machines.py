@@ -36,7 +36,7 @@ from botstage.behaviors.btcpp.vocabulary import (
 )
 from botstage.behaviors.btcpp.xml_reader import Element
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 from botstage.robots.located_yaml import Location
 
 _REF = re.compile(r"^\{@?[^{}]*\}$")

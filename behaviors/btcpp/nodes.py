@@ -35,7 +35,7 @@ from botstage.behaviors.kinds.base import CompositeKind, DecoratorKind, Describe
 from botstage.behaviors.kinds.registry import NodeSet
 from botstage.behaviors.skill_behaviour import KeyRef
 from botstage.behaviors.skill_binding import parse_binding
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 
 
 class LiteralType:

@@ -8,7 +8,7 @@ import py_trees
 from pydantic import Field
 
 from botstage.behaviors.kinds.base import CompositeKind, KindOptions, NodeBuild
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 
 PARALLEL_POLICIES = ("success_on_all", "success_on_one", "success_on_selected")
 

@@ -25,7 +25,7 @@ from botstage.behaviors.kinds.registry import NodeSet
 from botstage.behaviors.nav2 import behaviours as nav2
 from botstage.behaviors.skill_behaviour import KeyRef
 from botstage.behaviors.skill_binding import parse_binding
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 
 Positive = Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]
 NonNegative = Annotated[float, Field(ge=0, le=1e6, allow_inf_nan=False)]

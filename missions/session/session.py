@@ -25,7 +25,7 @@ from py_trees.common import Status
 
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import NodeKinds
-from botstage.behaviors.suggest import did_you_mean
+from botstage.robots.suggest import did_you_mean
 from botstage.behaviors.trace import Trace, jsonable
 from botstage.missions.check import Checked, build_root, check, root_spec_path, start_pose
 from botstage.missions.schema import Mission
