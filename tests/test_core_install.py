@@ -4,6 +4,7 @@ told, where it uses it, which extra to install."""
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import venv
 from pathlib import Path
@@ -40,11 +41,18 @@ print("imported", sorted(m for m in {SET_PACKAGES!r} if m in sys.modules))
 @pytest.fixture(scope="module")
 def core(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A virtualenv with botstage installed from this checkout as a wheel, without extras."""
-    folder = tmp_path_factory.mktemp("core") / "venv"
+    base = tmp_path_factory.mktemp("core")
+    source = base / "botstage"  # a copy: pip builds in the source tree, and the checkout stays clean
+    for part in ("pyproject.toml", "README.md", "behaviors", "skills", "robots", "missions"):
+        if (ROOT / part).is_dir():
+            shutil.copytree(ROOT / part, source / part, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy2(ROOT / part, source / part)
+    folder = base / "venv"
     venv.create(folder, with_pip=True)
     python = folder / "bin" / "python"
     install = subprocess.run(
-        [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", str(ROOT)],
+        [str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", str(source)],
         capture_output=True,
         text=True,
         timeout=900,
