@@ -110,16 +110,21 @@ def check(
 
 
 def check_loaded(
-    loaded: Loaded, path: str | Path, registry: Registry | None = None, kinds: NodeKinds | None = None
+    loaded: Loaded,
+    path: str | Path,
+    registry: Registry | None = None,
+    kinds: NodeKinds | None = None,
+    engine_for: Callable[[Mission, Registry, NodeKinds], Engine] | None = None,
 ) -> Checked:
     """Check a mission already in memory, from any front end; never raises for a bad mission.
 
     ``path`` is where the mission comes from: it names a mission without a name, and relative
     robot and world paths are found beside it. Problems are located through ``loaded.locations``.
+    ``engine_for``: as for ``check``.
     """
     path = Path(path)
     where = loaded.locations.root or Location(str(path), 1, 1)
-    return _safely(path, where, lambda: _check(loaded, path, registry, kinds))
+    return _safely(path, where, lambda: _check(loaded, path, registry, kinds, engine_for))
 
 
 def _safely(path: Path, where: Location, checking: Callable[[], Checked]) -> Checked:

@@ -14,6 +14,7 @@ from typing import Any
 
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import NodeKinds
+from botstage.missions.loader import Loaded
 from botstage.missions.session import (
     WALL_CLOCK_FIELDS,
     MissionInvalid,
@@ -64,6 +65,8 @@ def run(
     backend_options: Mapping[str, Any] | None = None,
     observers: Sequence[object] = (),
     backends: BackendRegistry | None = None,
+    loaded: Loaded | None = None,
+    record: Callable[[Path], Path] | None = None,
 ) -> RunResult:
     """Check and run a mission.
 
@@ -73,6 +76,7 @@ def run(
     ``backend`` names an installed backend (``BackendRegistry``); wall-clock ones (``emulator``,
     ``hardware``) run in real time. Its options come from the robot profile's ``backends:``,
     then ``port`` (a shortcut for the hardware backend's ``port``), then ``backend_options``.
+    ``loaded`` and ``record``: a mission in memory and how its run folder keeps it (``RunSession``).
     ``observers`` watch the run (``missions/session/observer.py``); ``progress`` is the live
     display's callback, given a snapshot maker every ``progress_interval_s``.
     """
@@ -94,5 +98,7 @@ def run(
         port=port,
         observers=watching,
         backends=backends,
+        loaded=loaded,
+        record=record,
     )
     return session.run()

@@ -276,10 +276,13 @@ class Mission:
     def check(self, registry: Registry | None = None) -> Checked:
         """Check it as ``botstage validate`` checks a file; problems point at the Python lines
         (or the YAML lines, for what came from a file)."""
+        return check_loaded(self._loaded(), self.origin, registry)
+
+    def _loaded(self) -> Loaded:
+        """The mission as the checker takes it: its data, with where each part was written."""
         data, low = self._lowered()
         unwritable = low.problems()  # like a file that does not parse: nothing else can be judged
-        loaded = Loaded(None if unwritable else data, low.locations, [*self._load_problems, *unwritable], [self.origin])
-        return check_loaded(loaded, self.origin, registry)
+        return Loaded(None if unwritable else data, low.locations, [*self._load_problems, *unwritable], [self.origin])
 
     def checked(self, registry: Registry | None = None) -> Checked:
         """The check of a valid mission; runner's ``MissionInvalid`` (its problems) otherwise."""
@@ -322,20 +325,22 @@ class Mission:
         """Check, then run as ``botstage.missions.runner.run`` does (same options: ``backend``, ``seed``,
         ``until``, ``realtime``, ``blackboard``, ``before_tick``, ...).
 
-        The runner takes a file: a mission changed since (or never) loaded from one is checked
-        here first, so problems point at the Python lines, then written to the run folder as
-        ``mission.yaml`` and run from there (the run's ``summary.json`` names that file).
+        A mission changed since (or never) loaded from a file runs from memory: checked once, so
+        problems point at the Python lines, and built and run as checked. Its run folder keeps
+        it as ``mission.yaml`` (what ``summary.json`` names, for replays), written, never read.
         """
-        from botstage.missions.runner import run, run_folder
+        from botstage.missions.runner import run
 
-        checked = self.checked(registry)
         if self._file is not None and self.to_dict() == self._as_loaded:
             return run(self._file, out=out, registry=registry, **options)
-        assert checked.mission is not None
-        folder = run_folder(checked.mission.name, out)
-        path = folder / RUN_FILE
-        path.write_text(dump_yaml(self._runnable(checked.mission.name)), encoding="utf-8")
-        return run(path, out=folder, registry=registry, **options)
+
+        def record(folder: Path) -> Path:
+            path = folder / RUN_FILE
+            name = self.name or self.origin.stem
+            path.write_text(dump_yaml(self._runnable(name)), encoding="utf-8")
+            return path
+
+        return run(self.origin, out=out, registry=registry, loaded=self._loaded(), record=record, **options)
 
     def _runnable(self, name: str) -> dict[str, Any]:
         """The data to run from a file elsewhere: named, its robot and world paths made absolute."""

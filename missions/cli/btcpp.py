@@ -1,16 +1,14 @@
-"""Verbs for BehaviorTree.CPP v4 XML: `botstage import` writes the mission a tree file describes;
-`botstage run tree.xml --robot R --world W` runs one directly (see ``runner_for``)."""
+"""Verbs for BehaviorTree.CPP v4 XML: `botstage import` writes the mission a tree file describes,
+`botstage export` writes a mission (or a run, for Groot2) as XML."""
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import typer
 
-from botstage.missions.cli.common import _fail, _stderr, console, input_file, os_problem, output_file
+from botstage.missions.cli.common import _fail, console, input_file, os_problem, output_file
 
 
 def import_(
@@ -39,63 +37,6 @@ def import_(
     except OSError as exc:
         raise _fail(f"error: {os_problem(exc)}") from None
     console.print(f"wrote {output}", highlight=False, soft_wrap=True)
-
-
-def blackboard_values(assignments: list[str]) -> dict[str, Any]:
-    """``--set KEY=VALUE`` options as initial blackboard values, each VALUE read as YAML
-    (``exhibit_a`` a string, ``[2.0, 3.5]`` a list, ``4`` a number); a bad one is a usage error."""
-    import yaml
-
-    values: dict[str, Any] = {}
-    for text in assignments:
-        key, sep, raw = text.partition("=")
-        if not sep or not key.strip():
-            raise _fail(f"error: --set {text!r}: expected KEY=VALUE, e.g. --set goal=exhibit_a", 2)
-        try:
-            values[key.strip()] = yaml.safe_load(raw) if raw.strip() else ""
-        except yaml.YAMLError as exc:
-            raise _fail(f"error: --set {text!r}: the value is not YAML: {exc}", 2) from None
-    return values
-
-
-def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | None = None) -> Callable[..., Any]:
-    """How `run` runs a mission file: as it is, or, with ``--robot``/``--world`` (a tree file
-    names neither) or ``--set`` values, as a mission with them set: checked first (problems at
-    the file's lines), then written to the run folder as mission.yaml and run from there."""
-    from botstage.missions.runner import run
-
-    if robot is None and world is None and not values:
-        return run
-
-    from botstage.missions.api.mission import Mission
-    from botstage.robots.gridmap import known_maps, map_path
-    from botstage.robots.profile import known_profiles, profile_path
-
-    # found from the working directory, as paths on a command line are; a bad one is a usage error
-    for option, value, find, shipped, noun in (
-        ("--robot", robot, profile_path, known_profiles, "robot profile"),
-        ("--world", world, map_path, known_maps, "world"),
-    ):
-        if value is not None and find(value, Path.cwd()) is None:
-            raise _fail(f"error: {option}: unknown {noun} {value!r} (shipped: {', '.join(shipped())})", 2)
-
-    def run_placed(path: Path, **options: Any) -> Any:
-        mission = Mission.from_yaml(path)
-        if robot is not None:
-            mission.robot = str(profile_path(robot, Path.cwd()) if robot not in known_profiles() else robot)
-        if world is not None:
-            mission.world = str(map_path(world, Path.cwd()) if world not in known_maps() else world)
-        if values:
-            mission.blackboard = {**mission.blackboard, **values}  # --set
-        return mission.run(**options)
-
-    return run_placed
-
-
-def warn_unplaced(path: Path, robot: str | None, world: str | None) -> None:
-    """A tree file run without a robot runs its tree alone, on no robot: say so."""
-    if path.suffix.lower() == ".xml" and robot is None:
-        _stderr([f"note: {path} names no robot; add --robot PROFILE --world MAP to drive one"])
 
 
 # -- export: `botstage export MISSION.yaml -f btcpp`, `botstage export RUN_FOLDER -f btlog` ----------

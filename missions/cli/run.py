@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.live import Live
@@ -100,16 +101,12 @@ def run(
     monitor_port: int = typer.Option(8470, help="the monitor's port (0: a free one)", min=0, max=65535),
     monitor_host: str = typer.Option("127.0.0.1", help=HOST_HELP),
     paused: bool = typer.Option(False, "--paused", help="with --monitor: hold the run before its first tick"),
-    # -- Groot2 (missions/groot2) --
     groot2: bool = typer.Option(False, "--groot2", help="let Groot2 attach: its ZMQ protocol while the mission runs"),
     groot2_port: int = typer.Option(1667, help="Groot2's port (its notifications on the next one)", min=1, max=65534),
     groot2_host: str = typer.Option("127.0.0.1", help=GROOT2_HOST_HELP),
-    # -- end Groot2
-    # -- initial blackboard values (issue 22: Nav2's trees read `goal`) --
     set_values: list[str] = typer.Option(
         [], "--set", metavar="KEY=VALUE", help="an initial blackboard value, VALUE read as YAML (repeatable)"
     ),
-    # -- end initial blackboard values
 ) -> None:
     """Run a mission and write its run folder (trace.jsonl, summary.json, report.html).
 
@@ -119,7 +116,6 @@ def run(
     Exit status: 0 success or time limit, 1 nothing ran (invalid mission, a file), 2 usage,
     3 the mission ended in failure, 4 the run stopped on an error, 130 interrupted.
     """
-    from botstage.missions.cli.btcpp import blackboard_values, runner_for, warn_unplaced  # blackboard_values: --set
     from botstage.missions.runner import MissionInvalid, RunError
 
     run_mission = runner_for(robot, world, blackboard_values(set_values))
@@ -173,3 +169,60 @@ def run(
         _stderr([f"warning: observer {error}"])
     if result.exit_status:
         raise typer.Exit(result.exit_status)
+
+
+def blackboard_values(assignments: list[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` options as initial blackboard values, each VALUE read as YAML
+    (``exhibit_a`` a string, ``[2.0, 3.5]`` a list, ``4`` a number); a bad one is a usage error."""
+    import yaml
+
+    values: dict[str, Any] = {}
+    for text in assignments:
+        key, sep, raw = text.partition("=")
+        if not sep or not key.strip():
+            raise _fail(f"error: --set {text!r}: expected KEY=VALUE, e.g. --set goal=exhibit_a", 2)
+        try:
+            values[key.strip()] = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError as exc:
+            raise _fail(f"error: --set {text!r}: the value is not YAML: {exc}", 2) from None
+    return values
+
+
+def runner_for(robot: str | None, world: str | None, values: dict[str, Any] | None = None) -> Callable[..., Any]:
+    """How `run` runs a mission file: as it is, or, with ``--robot``/``--world`` (a tree file
+    names neither) or ``--set`` values, as a mission with them set: checked first (problems at
+    the file's lines), then written to the run folder as mission.yaml and run from there."""
+    from botstage.missions.runner import run
+
+    if robot is None and world is None and not values:
+        return run
+
+    from botstage.missions.api.mission import Mission
+    from botstage.robots.gridmap import known_maps, map_path
+    from botstage.robots.profile import known_profiles, profile_path
+
+    # found from the working directory, as paths on a command line are; a bad one is a usage error
+    for option, value, find, shipped, noun in (
+        ("--robot", robot, profile_path, known_profiles, "robot profile"),
+        ("--world", world, map_path, known_maps, "world"),
+    ):
+        if value is not None and find(value, Path.cwd()) is None:
+            raise _fail(f"error: {option}: unknown {noun} {value!r} (shipped: {', '.join(shipped())})", 2)
+
+    def run_placed(path: Path, **options: Any) -> Any:
+        mission = Mission.from_yaml(path)
+        if robot is not None:
+            mission.robot = str(profile_path(robot, Path.cwd()) if robot not in known_profiles() else robot)
+        if world is not None:
+            mission.world = str(map_path(world, Path.cwd()) if world not in known_maps() else world)
+        if values:
+            mission.blackboard = {**mission.blackboard, **values}  # --set
+        return mission.run(**options)
+
+    return run_placed
+
+
+def warn_unplaced(path: Path, robot: str | None, world: str | None) -> None:
+    """A tree file run without a robot runs its tree alone, on no robot: say so."""
+    if path.suffix.lower() == ".xml" and robot is None:
+        _stderr([f"note: {path} names no robot; add --robot PROFILE --world MAP to drive one"])

@@ -25,9 +25,9 @@ from py_trees.common import Status
 
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import NodeKinds
-from botstage.robots.suggest import did_you_mean
 from botstage.behaviors.trace import Trace, jsonable
-from botstage.missions.check import Checked, build_root, check, root_spec_path, start_pose
+from botstage.missions.check import Checked, build_root, check, check_loaded, root_spec_path, start_pose
+from botstage.missions.loader import Loaded
 from botstage.missions.schema import Mission
 from botstage.missions.session.ending import SigtermLatch, outcome
 from botstage.missions.session.errors import MissionInvalid, RunError, StopRun
@@ -50,6 +50,7 @@ from botstage.robots.gridmap import GridMap, known_maps
 from botstage.robots.interfaces import Pose2D
 from botstage.robots.located_yaml import Locations, Problem
 from botstage.robots.profile import Profile
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.registry import Registry
 
 DONE = (Status.SUCCESS, Status.FAILURE)
@@ -76,8 +77,17 @@ class RunSession:
         observers: Sequence[object] = (),
         backends: BackendRegistry | None = None,
         services: PluginRegistry | None = None,
+        loaded: Loaded | None = None,
+        record: Callable[[Path], Path] | None = None,
     ) -> None:
+        """``path``: the mission file; or, with ``loaded`` (a mission in memory: the Python API's,
+        a file's with values set on the command line), where that mission comes from, and
+        ``record(run_folder)`` keeps it in the run folder for replays, returning the file it wrote
+        (the summary names it). Either way the mission is checked once and run as checked."""
         self.path = Path(path)
+        self.loaded = loaded
+        self.record = record
+        self.mission_file = self.path
         self.backend_name = backend
         self.realtime = realtime
         self.out = out
@@ -175,7 +185,10 @@ class RunSession:
             self.kind = self.backends.get(self.backend_name)
         except BackendError as exc:
             raise RunError(exc.message) from None
-        checked = check(self.path, self.registry, self.kinds, engine_for=self._engine_for)
+        if self.loaded is not None:
+            checked = check_loaded(self.loaded, self.path, self.registry, self.kinds, engine_for=self._engine_for)
+        else:
+            checked = check(self.path, self.registry, self.kinds, engine_for=self._engine_for)
         if not checked.ok:
             if self.engine is not None:
                 self.engine.close()
@@ -244,6 +257,8 @@ class RunSession:
     def open_backend(self) -> None:
         """The run folder; then the robot, if the mission has one. Mission time starts after."""
         self.folder = run_folder(self.mission.name, self.out)
+        if self.record is not None:
+            self.mission_file = self.record(self.folder)
         self.started_at = time.perf_counter()
         self._sink = (self.folder / "trace.jsonl").open("w", encoding="utf-8")
         # a real robot connects on a clock of its own: the run's starts when it is open

@@ -94,7 +94,7 @@ class SummaryObserver:
                 "wall_time_s": round(time.perf_counter() - session.started_at, 3),
                 "ticks": clock.ticks,
                 "counters": session.counters,
-                "mission_file": str(session.path.resolve()),
+                "mission_file": str(session.mission_file.resolve()),
                 "until": session.until,
             },
         )
