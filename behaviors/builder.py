@@ -34,8 +34,8 @@ from botstage.behaviors.machine import MachineBehaviour, MachinePlan
 from botstage.behaviors.machine_plan import MachinePlanner
 from botstage.behaviors.runtime import Runtime
 from botstage.behaviors.skill_binding import SkillBinder, success_outcomes
-from botstage.robots.suggest import did_you_mean
 from botstage.robots.limits import MAX_NODE_DEPTH
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.expression import Expression, ExpressionError, compile_expression, key_of
 
 __all__ = ["Builder", "KeyUsage", "Scope", "SpecError", "SpecPath", "SpecProblem", "remap_condition", "remap_key"]

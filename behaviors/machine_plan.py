@@ -19,8 +19,8 @@ from botstage.behaviors.machine import (
     resolve_outcome,
     resolve_target,
 )
-from botstage.robots.suggest import did_you_mean
 from botstage.robots.limits import PositiveSeconds, number_problem
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.expression import Expression
 
 if TYPE_CHECKING:

@@ -52,7 +52,6 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from botstage.behaviors.blackboard import MissingKeyError
-from botstage.robots.suggest import did_you_mean
 from botstage.missions.loader import Loaded, Location, Problem, load
 from botstage.missions.mocks import Call, Rule, Write, calls_of, mock_of
 from botstage.missions.replay import from_trace
@@ -62,6 +61,7 @@ from botstage.missions.session.observers import EventRecorder
 from botstage.missions.session.session import RunSession
 from botstage.missions.session.uploads import set_gallery
 from botstage.missions.steering import drive_one_step, stop_everything
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.base import Skill
 from botstage.skills.expression import EvaluationError, compile_expression
 from botstage.skills.registry import Registry

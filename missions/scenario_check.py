@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 from botstage.behaviors.blackboard import BlackboardError, normalise_key
 from botstage.behaviors.render import Item
-from botstage.robots.suggest import did_you_mean
 from botstage.behaviors.trace import FIELDS
 from botstage.missions.check import check, check_write, describe_part
 from botstage.missions.mocks import calls_of
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.base import type_name
 from botstage.skills.expression import ExpressionError, compile_expression
 from botstage.skills.registry import Registry

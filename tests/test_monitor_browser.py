@@ -11,11 +11,11 @@ from typing import Any
 
 import httpx
 import pytest
-from botstage.behaviors.trace import read_jsonl
-from botstage.missions.cli import app
 from playwright import sync_api as playwright
 from typer.testing import CliRunner
 
+from botstage.behaviors.trace import read_jsonl
+from botstage.missions.cli import app
 from tests.monitor_harness import ENTERTAINER, LISTENING, live_run, replayed_run, wait_until
 from tests.tools import require
 

@@ -36,8 +36,8 @@ from botstage.behaviors.btcpp.vocabulary import (
 )
 from botstage.behaviors.btcpp.xml_reader import Element
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind
-from botstage.robots.suggest import did_you_mean
 from botstage.robots.located_yaml import Location
+from botstage.robots.suggest import did_you_mean
 
 _REF = re.compile(r"^\{@?[^{}]*\}$")
 _TRANSITION = re.compile(r"^\s*(\S+)\s*->\s*(\S+)(?:\s+if\s+(.+))?\s*$", re.DOTALL)

@@ -35,9 +35,9 @@ from botstage.behaviors.btcpp.script import ScriptError, compile_script
 from botstage.behaviors.btcpp.vocabulary import _BAD, IGNORED, NODE_MODELS, RENAMED, SCOPE, _bool, convert
 from botstage.behaviors.btcpp.xml_reader import Element, parse
 from botstage.behaviors.kinds import CompositeKind, DecoratorKind, NodeKinds
-from botstage.robots.suggest import did_you_mean
 from botstage.robots import limits
 from botstage.robots.located_yaml import Location, Locations, Problem, display_name
+from botstage.robots.suggest import did_you_mean
 from botstage.skills.base import plain_type
 from botstage.skills.registry import Registry
 

@@ -50,7 +50,7 @@ def _live_progress(live: Live):
 
 # -- Groot2 (missions/groot2) ------------------------------------------------------------------
 
-GROOT2_HOST_HELP = "address Groot2 connects to (default 127.0.0.1; ZMQ has no authentication: see the README)"
+GROOT2_HOST_HELP = "address Groot2 connects to (default 127.0.0.1; ZMQ has no authentication: see docs/guides/btcpp.md)"
 _LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 

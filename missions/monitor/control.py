@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import py_trees
+
 from botstage.behaviors.blackboard import normalise_key
 from botstage.behaviors.machine import MachineBehaviour
 from botstage.behaviors.skill_behaviour import SkillBehaviour

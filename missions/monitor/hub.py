@@ -98,7 +98,7 @@ class Hub:
     version: int = 0
     flags: Flags = field(default_factory=Flags)
     statuses: dict[str, tuple[str, int]] = field(default_factory=dict)
-    # when each status last changed (wall clock, epoch seconds): what `botstage bench monitor`
+    # when each status last changed (wall clock, epoch seconds): what `python -m tests.bench monitor`
     # measures the pages' latency from; never part of the run's own record
     changed_at: dict[str, float] = field(default_factory=dict)
     states: dict[str, tuple[str, int]] = field(default_factory=dict)

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from typing import IO, TYPE_CHECKING, Any
 
 import cv2
+
 from botstage.behaviors.render import describe, to_plain
 from botstage.missions.monitor.control import NODE, Control
 from botstage.missions.monitor.hub import Hub

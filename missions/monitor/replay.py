@@ -17,9 +17,8 @@ from botstage.behaviors.trace import read_jsonl
 from botstage.missions.check import check, describe_part
 from botstage.missions.monitor.hub import Hub, type_name
 from botstage.missions.monitor.robot_view import POSES_FILE, read_poses
-from botstage.robots.gridmap import GridMap
+from botstage.robots.gridmap import GridMap, map_path
 from botstage.robots.gridmap import load as load_map
-from botstage.robots.gridmap import map_path
 from botstage.skills.display import DEFAULT as DEFAULT_LAYOUT
 from botstage.skills.display import LAYOUTS
 

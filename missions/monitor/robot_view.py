@@ -14,6 +14,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+
 from botstage.robots.gridmap import GridMap
 
 SAMPLE_S = 0.1  # the map is redrawn at 10 Hz at most

@@ -9,7 +9,7 @@ from typing import Any
 
 WALL_CLOCK_FIELDS = ("wall_time_s", "overruns")  # summary fields that differ between identical runs
 
-# `botstage run`'s exit statuses (the README's "Exit status" table says the same)
+# `botstage run`'s exit statuses (docs/reference/exit-status.md says the same)
 EXIT_OK = 0  # the mission succeeded, or ran until its time limit
 EXIT_NOT_RUN = 1  # nothing ran: the mission is invalid, or a file could not be read or written
 EXIT_USAGE = 2  # a bad option or argument (typer's usage errors too)
