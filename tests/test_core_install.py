@@ -43,6 +43,7 @@ def core(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A virtualenv with botstage installed from this checkout as a wheel, without extras."""
     base = tmp_path_factory.mktemp("core")
     source = base / "botstage"  # a copy: pip builds in the source tree, and the checkout stays clean
+    source.mkdir()
     for part in ("pyproject.toml", "README.md", "behaviors", "skills", "robots", "missions"):
         if (ROOT / part).is_dir():
             shutil.copytree(ROOT / part, source / part, ignore=shutil.ignore_patterns("__pycache__"))

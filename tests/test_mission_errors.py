@@ -300,3 +300,26 @@ def test_voice_settings_are_checked_before_anything_runs(tmp_path: Path) -> None
     )
     assert any(p.startswith("m.yaml:3:") and "voices.every" in p for p in found), found
     assert any(p.startswith("m.yaml:3:") and "no such command PHOTOS" in p for p in found), found
+
+
+@pytest.mark.parametrize("far", ["1.0e+308", "-400"])
+def test_a_walk_point_off_the_map_is_located(tmp_path: Path, far: str) -> None:
+    """Found by the fuzz test: a point 1e308 m away overflowed the walk's path check."""
+    mission = tmp_path / "walker.yaml"
+    mission.write_text(
+        textwrap.dedent(
+            f"""\
+            name: walker
+            robot: peoplebot
+            world: museum
+            walks:
+            - path: [[13.0, 7.0], [{far}, 13.0]]
+            trees:
+              main: {{wait: {{duration: 1}}}}
+            """
+        ),
+        encoding="utf-8",
+    )
+    problems = [str(problem) for problem in check(mission).problems]
+    assert len(problems) == 1 and problems[0].startswith(f"{mission}:5:")
+    assert "is off the map" in problems[0]

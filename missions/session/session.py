@@ -25,6 +25,7 @@ from py_trees.common import Status
 
 from botstage.behaviors.engine import Engine
 from botstage.behaviors.kinds import NodeKinds
+from botstage.behaviors.render import describe
 from botstage.behaviors.trace import Trace, jsonable
 from botstage.missions.check import Checked, build_root, check, check_loaded, root_spec_path, start_pose
 from botstage.missions.loader import Loaded
@@ -269,10 +270,25 @@ class RunSession:
             except BackendError as exc:
                 self._sink.close()
                 raise RunError(exc.message, exc.problems) from None
+        if not self.kind.simulated and not isinstance(self.clock, WallClock):
+            self._rebuild_on(WallClock(self.mission.rate_hz))  # it said only once open: real time
         if isinstance(self.clock, WallClock):  # connecting took a while: mission time starts now
             self.clock.restart()
         if self.backend is not None and connecting is not self.clock:
             self.backend.use_clock(self.clock)  # what arrived while connecting, rebased
+
+    def _rebuild_on(self, clock: Clock) -> None:
+        """What runs, built again on ``clock``: only for a backend that says whether it runs in
+        real time once it is open (a robot another process serves, on its board or simulated)."""
+        assert self.engine is not None
+        self.engine.close()
+        self.clock = clock
+        self.engine = Engine(clock=clock, seed=self.seed, registry=self.checked.registry, kinds=self.checked.kinds)
+        self.engine.interfaces = self.interfaces
+        mission = self.mission
+        builder = self.engine.builder(mission.trees, mission.machines, mission.skill_params)
+        self.checked.root = build_root(builder, mission, root_spec_path(mission))
+        self.checked.picture = describe(self.checked.root)
 
     def robot_request(self, clock: Clock) -> OpenRequest | None:
         """What opening the mission's robot takes, on ``clock``: for a robot served by another
