@@ -77,8 +77,15 @@ def first_blocked(
 
     if not clear(*path[0]):
         return 0, path[0][0], path[0][1]
+    # two points of the map are never farther apart than its diagonal: a longer leg leaves the map
+    # within that distance, so no more of it is walked (a point 1e308 m away must not overflow)
+    span = math.hypot(grid.width, grid.height) * grid.resolution + grid.resolution
     for k, ((ax, ay), (bx, by)) in enumerate(itertools.pairwise(path), start=1):
-        steps = max(1, math.ceil(math.hypot(bx - ax, by - ay) / (grid.resolution / 2)))
+        length = math.hypot(bx - ax, by - ay)
+        if length > span:
+            bx, by = ax + (bx - ax) / length * span, ay + (by - ay) / length * span
+            length = span
+        steps = max(1, math.ceil(length / (grid.resolution / 2)))
         for step in range(1, steps + 1):
             x, y = ax + (bx - ax) * step / steps, ay + (by - ay) * step / steps
             if not clear(x, y):
